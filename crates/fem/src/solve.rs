@@ -1,0 +1,406 @@
+//! The linear problem $K u = f$ with Dirichlet conditions and elastic
+//! supports, solved by sparse Cholesky ($K_{ff} = LL^T$, faer, with an AMD
+//! fill-reducing ordering).
+//!
+//! [`LinearProblem`] keeps the assembled $K$, the reduced pattern of
+//! $K_{ff}$, its symbolic factorisation (computed once) and the numeric
+//! factor, so that
+//!
+//! - new loads cost two triangular solves ([`LinearProblem::solve`],
+//!   [`LinearProblem::solve_many`]);
+//! - new materials cost one parallel assembly and one numeric factorisation
+//!   ([`LinearProblem::factorize`]), reusing pattern and symbolic analysis.
+//!
+//! Before factorising, the constraints are checked against the rigid-body
+//! modes (2 translations and 1 rotation in 2-D, 3 and 3 in 3-D): a mode that
+//! no prescribed dof and no support resists makes $K_{ff}$ singular and is
+//! reported as [`FemError::Unconstrained`] rather than a garbage solution.
+
+use faer::linalg::solvers::Solve;
+use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
+use faer::sparse::{SparseColMat, SymbolicSparseColMat};
+use faer::{Mat, MatMut, Side};
+use nalgebra::DMatrix;
+
+use crate::assemble::{Assembler, multiply};
+use crate::dirichlet::Dirichlet;
+use crate::error::FemError;
+use crate::material::Materials;
+use crate::mesh::Mesh;
+use crate::support::Support;
+
+/// Displacements and reactions of one solve.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Solution {
+    /// Nodal displacements, interleaved $(u_x, u_y[, u_z])$ per node.
+    pub displacement: Vec<f64>,
+    /// Reactions $r = K u - f$: the forces that the constraints apply, zero
+    /// at free dofs.
+    pub reactions: Vec<f64>,
+}
+
+/// A linear elastic problem with a kept factorisation.
+#[derive(Debug, Clone)]
+pub struct LinearProblem<const D: usize> {
+    assembler: Assembler<D>,
+    supports: Vec<Support<D>>,
+    dirichlet: Dirichlet,
+    /// Free dofs, ascending; `reduced_index[dof]` is the position of a free
+    /// dof in this list, `usize::MAX` for constrained dofs.
+    free: Vec<usize>,
+    reduced_index: Vec<usize>,
+    /// Full $K$ (elastic plus springs), no constraints applied.
+    stiffness: SparseColMat<usize, f64>,
+    /// Spring matrix of the supports (material independent), if any.
+    springs: Option<SparseColMat<usize, f64>>,
+    /// Lower triangle of $K_{ff}$ and, per entry, its position in `stiffness`.
+    reduced: SparseColMat<usize, f64>,
+    gather: Vec<usize>,
+    symbolic: SymbolicLlt<usize>,
+    factor: Option<Llt<usize, f64>>,
+}
+
+impl<const D: usize> LinearProblem<D> {
+    /// Sets up the problem: checks constraints and supports, builds the
+    /// reduced pattern and the symbolic factorisation. Call
+    /// [`LinearProblem::factorize`] before solving.
+    pub fn new(
+        assembler: Assembler<D>,
+        supports: Vec<Support<D>>,
+        dirichlet: Dirichlet,
+    ) -> Result<Self, FemError> {
+        let mesh = assembler.mesh();
+        let dof_count = mesh.dof_count();
+        if let Some((dof, _)) = dirichlet.iter().find(|&(d, _)| d >= dof_count) {
+            return Err(FemError::DofOutOfRange {
+                context: "Dirichlet condition",
+                dof,
+                dof_count,
+            });
+        }
+        let springs = if supports.is_empty() {
+            None
+        } else {
+            let mut s = assembler.pattern().zeros();
+            for support in &supports {
+                support.add_to(mesh, assembler.formulation(), assembler.pattern(), &mut s)?;
+            }
+            Some(s)
+        };
+        let free_modes = free_rigid_modes(mesh, &dirichlet, springs.as_ref());
+        if free_modes > 0 {
+            return Err(FemError::Unconstrained { free_modes });
+        }
+        let free: Vec<usize> = (0..dof_count).filter(|&d| !dirichlet.contains(d)).collect();
+        let mut reduced_index = vec![usize::MAX; dof_count];
+        for (k, &d) in free.iter().enumerate() {
+            reduced_index[d] = k;
+        }
+        let stiffness = assembler.pattern().zeros();
+        let full = stiffness.symbolic();
+        let mut col_ptr = Vec::with_capacity(free.len() + 1);
+        let mut row_idx = Vec::new();
+        let mut gather = Vec::new();
+        col_ptr.push(0);
+        for (jr, &j) in free.iter().enumerate() {
+            for p in full.col_ptr()[j]..full.col_ptr()[j + 1] {
+                let ir = reduced_index[full.row_idx()[p]];
+                if ir != usize::MAX && ir >= jr {
+                    row_idx.push(ir);
+                    gather.push(p);
+                }
+            }
+            col_ptr.push(row_idx.len());
+        }
+        let reduced_symbolic =
+            SymbolicSparseColMat::new_checked(free.len(), free.len(), col_ptr, None, row_idx);
+        let symbolic = SymbolicLlt::try_new(reduced_symbolic.as_ref(), Side::Lower)
+            .map_err(|e| FemError::Factorization(format!("symbolic analysis: {e:?}")))?;
+        let reduced = SparseColMat::new(reduced_symbolic, vec![0.0; gather.len()]);
+        Ok(Self {
+            assembler,
+            supports,
+            dirichlet,
+            free,
+            reduced_index,
+            stiffness,
+            springs,
+            reduced,
+            gather,
+            symbolic,
+            factor: None,
+        })
+    }
+
+    /// Assembles $K(E,\nu)$ for `materials` (reusing storage and pattern),
+    /// adds the supports, and computes the numeric Cholesky factor of
+    /// $K_{ff}$ reusing the symbolic analysis.
+    pub fn factorize(&mut self, materials: &Materials) -> Result<(), FemError> {
+        self.factor = None;
+        self.assembler
+            .stiffness_into(materials, &mut self.stiffness)?;
+        if let Some(springs) = &self.springs {
+            for (k, s) in self.stiffness.val_mut().iter_mut().zip(springs.val()) {
+                *k += s;
+            }
+        }
+        let values = self.stiffness.val();
+        for (r, &p) in self.reduced.val_mut().iter_mut().zip(&self.gather) {
+            *r = values[p];
+        }
+        if self.reduced.val().iter().any(|v| !v.is_finite()) {
+            return Err(FemError::NonFinite("stiffness matrix"));
+        }
+        let factor =
+            Llt::try_new_with_symbolic(self.symbolic.clone(), self.reduced.as_ref(), Side::Lower)
+                .map_err(|e| FemError::Factorization(format!("{e:?}")))?;
+        self.factor = Some(factor);
+        Ok(())
+    }
+
+    /// The assembler (mesh, formulation, pattern).
+    pub fn assembler(&self) -> &Assembler<D> {
+        &self.assembler
+    }
+
+    /// The mesh.
+    pub fn mesh(&self) -> &Mesh<D> {
+        self.assembler.mesh()
+    }
+
+    /// The supports.
+    pub fn supports(&self) -> &[Support<D>] {
+        &self.supports
+    }
+
+    /// The Dirichlet conditions.
+    pub fn dirichlet(&self) -> &Dirichlet {
+        &self.dirichlet
+    }
+
+    /// Changes prescribed values of already-constrained dofs (no
+    /// refactorisation needed); an unconstrained `dof` is an error.
+    pub fn set_prescribed(&mut self, dof: usize, value: f64) -> Result<(), FemError> {
+        if !self.dirichlet.contains(dof) {
+            return Err(FemError::DofOutOfRange {
+                context: "set_prescribed on a free dof",
+                dof,
+                dof_count: self.stiffness.nrows(),
+            });
+        }
+        self.dirichlet.set(dof, value)?;
+        Ok(())
+    }
+
+    /// The full assembled stiffness $K$ (elastic plus supports), before
+    /// constraints, in full symmetric storage (valid after `factorize`).
+    pub fn stiffness(&self) -> &SparseColMat<usize, f64> {
+        &self.stiffness
+    }
+
+    /// The lower triangle of the reduced matrix $K_{ff}$ (free dofs in
+    /// ascending order, see [`LinearProblem::free_dofs`]).
+    pub fn reduced_stiffness(&self) -> &SparseColMat<usize, f64> {
+        &self.reduced
+    }
+
+    /// The Cholesky factor of $K_{ff}$ (after `factorize`). Solve with
+    /// `faer::linalg::solvers::Solve::solve_in_place`.
+    pub fn factorization(&self) -> Option<&Llt<usize, f64>> {
+        self.factor.as_ref()
+    }
+
+    /// The symbolic analysis of $K_{ff}$ (ordering, elimination tree).
+    pub fn symbolic_factorization(&self) -> &SymbolicLlt<usize> {
+        &self.symbolic
+    }
+
+    /// Free dofs in ascending order: row `k` of the reduced system is dof
+    /// `free_dofs()[k]`.
+    pub fn free_dofs(&self) -> &[usize] {
+        &self.free
+    }
+
+    /// Position of `dof` in the reduced system, `None` if constrained.
+    pub fn reduced_index(&self, dof: usize) -> Option<usize> {
+        self.reduced_index
+            .get(dof)
+            .copied()
+            .filter(|&k| k != usize::MAX)
+    }
+
+    fn factor(&self) -> Result<&Llt<usize, f64>, FemError> {
+        self.factor
+            .as_ref()
+            .ok_or_else(|| FemError::Factorization("factorize() has not succeeded yet".into()))
+    }
+
+    /// Solves $K_{ff} X = B$ in place for reduced right-hand sides (one per
+    /// column of `rhs`, `free_dofs().len()` rows).
+    pub fn solve_reduced_in_place(&self, rhs: MatMut<'_, f64>) -> Result<(), FemError> {
+        if rhs.nrows() != self.free.len() {
+            return Err(FemError::DimensionMismatch {
+                context: "reduced right-hand side",
+                expected: self.free.len(),
+                actual: rhs.nrows(),
+            });
+        }
+        self.factor()?.solve_in_place(rhs);
+        Ok(())
+    }
+
+    /// Solves for the displacement under nodal loads `loads` (full,
+    /// interleaved, length `dof_count`) with the prescribed values, and
+    /// returns displacements and reactions.
+    pub fn solve(&self, loads: &[f64]) -> Result<Solution, FemError> {
+        let mut solutions = self.solve_many(&[loads])?;
+        Ok(solutions.remove(0))
+    }
+
+    /// Solves several load cases at once (one factorisation, one blocked
+    /// triangular solve).
+    pub fn solve_many(&self, loads: &[&[f64]]) -> Result<Vec<Solution>, FemError> {
+        let dof_count = self.stiffness.nrows();
+        for f in loads {
+            if f.len() != dof_count {
+                return Err(FemError::DimensionMismatch {
+                    context: "load vector",
+                    expected: dof_count,
+                    actual: f.len(),
+                });
+            }
+            if let Some(&value) = f.iter().find(|v| !v.is_finite()) {
+                return Err(FemError::InvalidValue {
+                    field: "load vector",
+                    value,
+                    reason: "must be finite",
+                });
+            }
+        }
+        let factor = self.factor()?;
+        // Lift of the prescribed values: f_f - K_fc u_c.
+        let mut prescribed = vec![0.0; dof_count];
+        for (d, v) in self.dirichlet.iter() {
+            prescribed[d] = v;
+        }
+        let lift = multiply(&self.stiffness, &prescribed);
+        let mut rhs = Mat::<f64>::from_fn(self.free.len(), loads.len(), |k, c| {
+            let d = self.free[k];
+            loads[c][d] - lift[d]
+        });
+        factor.solve_in_place(rhs.as_mut());
+        let mut out = Vec::with_capacity(loads.len());
+        for (c, f) in loads.iter().enumerate() {
+            let mut u = prescribed.clone();
+            for (k, &d) in self.free.iter().enumerate() {
+                u[d] = rhs[(k, c)];
+            }
+            if u.iter().any(|v| !v.is_finite()) {
+                return Err(FemError::NonFinite("displacement solution"));
+            }
+            let ku = multiply(&self.stiffness, &u);
+            let mut reactions = vec![0.0; dof_count];
+            for (d, _) in self.dirichlet.iter() {
+                reactions[d] = ku[d] - f[d];
+            }
+            out.push(Solution {
+                displacement: u,
+                reactions,
+            });
+        }
+        Ok(out)
+    }
+
+    /// Nodal forces $f = K u$ that hold the body at displacement `u`.
+    pub fn nodal_forces(&self, displacement: &[f64]) -> Result<Vec<f64>, FemError> {
+        if displacement.len() != self.stiffness.nrows() {
+            return Err(FemError::DimensionMismatch {
+                context: "displacement",
+                expected: self.stiffness.nrows(),
+                actual: displacement.len(),
+            });
+        }
+        Ok(multiply(&self.stiffness, displacement))
+    }
+}
+
+/// Number of rigid-body modes of the mesh that neither the prescribed dofs
+/// nor the springs resist. With the modes $R$ (centred and scaled to unit
+/// size), a mode $R a$ is free iff $R_c a = 0$ and $a^T R^T K_s R a = 0$;
+/// counts the near-zero eigenvalues of the sum of the two (normalised)
+/// Gram matrices.
+fn free_rigid_modes<const D: usize>(
+    mesh: &Mesh<D>,
+    dirichlet: &Dirichlet,
+    springs: Option<&SparseColMat<usize, f64>>,
+) -> usize {
+    let modes = rigid_body_modes(mesh);
+    let m = modes.len();
+    let mut constrained = DMatrix::<f64>::zeros(m, m);
+    for (d, _) in dirichlet.iter() {
+        for a in 0..m {
+            for b in 0..m {
+                constrained[(a, b)] += modes[a][d] * modes[b][d];
+            }
+        }
+    }
+    let mut energy = DMatrix::<f64>::zeros(m, m);
+    if let Some(s) = springs {
+        let images: Vec<Vec<f64>> = modes.iter().map(|r| multiply(s, r)).collect();
+        for a in 0..m {
+            for b in 0..m {
+                energy[(a, b)] = modes[a].iter().zip(&images[b]).map(|(x, y)| x * y).sum();
+            }
+        }
+    }
+    let normalise = |g: DMatrix<f64>| {
+        let trace = g.trace();
+        if trace > 0.0 { g / trace } else { g }
+    };
+    let gram = normalise(constrained) + normalise(energy);
+    let eigenvalues = gram.symmetric_eigenvalues();
+    let largest = eigenvalues.iter().copied().fold(0.0, f64::max);
+    eigenvalues
+        .iter()
+        .filter(|&&l| l <= 1e-12 * largest.max(f64::MIN_POSITIVE) || largest == 0.0)
+        .count()
+}
+
+/// The rigid-body modes of a mesh as full dof vectors: translations along
+/// each axis and infinitesimal rotations about the bounding-box centre,
+/// scaled by the box size so all modes have unit-order entries.
+pub fn rigid_body_modes<const D: usize>(mesh: &Mesh<D>) -> Vec<Vec<f64>> {
+    let (lo, hi) = mesh.bounding_box();
+    let mut centre = [0.0; D];
+    let mut size: f64 = 0.0;
+    for i in 0..D {
+        centre[i] = 0.5 * (lo[i] + hi[i]);
+        size = size.max(hi[i] - lo[i]);
+    }
+    let size = if size > 0.0 { size } else { 1.0 };
+    let n = mesh.node_count();
+    let mut modes = Vec::new();
+    for axis in 0..D {
+        let mut t = vec![0.0; D * n];
+        for k in 0..n {
+            t[k * D + axis] = 1.0;
+        }
+        modes.push(t);
+    }
+    // Rotation in the plane of axes (p, q): u_p = -x_q, u_q = x_p.
+    let planes: &[(usize, usize)] = if D == 2 {
+        &[(0, 1)]
+    } else {
+        &[(0, 1), (1, 2), (2, 0)]
+    };
+    for &(p, q) in planes {
+        let mut r = vec![0.0; D * n];
+        for k in 0..n {
+            let x = mesh.node(k);
+            r[k * D + p] = -(x[q] - centre[q]) / size;
+            r[k * D + q] = (x[p] - centre[p]) / size;
+        }
+        modes.push(r);
+    }
+    modes
+}

@@ -1,0 +1,102 @@
+//! Helpers shared by the test binaries.
+#![allow(dead_code)]
+
+use needle_fem::{ElementKind, Mesh, RectangleMesh, SlabMesh};
+
+/// Deterministic pseudo-random numbers in [-1, 1) from a seed (splitmix64).
+pub fn jitter(seed: u64, index: usize) -> f64 {
+    let mut z = seed.wrapping_add((index as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^= z >> 31;
+    (z >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+}
+
+/// A unit-square mesh of `n x n` cells with interior corner nodes moved by up
+/// to `amount` times the cell size (mid-edge nodes stay at edge midpoints).
+pub fn distorted_square(kind: ElementKind, n: usize, amount: f64, seed: u64) -> Mesh<2> {
+    let linear = RectangleMesh::uniform(1.0, 1.0, n, n)
+        .unwrap()
+        .build(ElementKind::Tri3)
+        .unwrap();
+    let h = 1.0 / n as f64;
+    let nodes: Vec<[f64; 2]> = linear
+        .nodes()
+        .iter()
+        .enumerate()
+        .map(|(k, p)| {
+            let interior = p.iter().all(|&x| x > 1e-12 && x < 1.0 - 1e-12);
+            if interior {
+                [
+                    p[0] + amount * h * jitter(seed, 2 * k),
+                    p[1] + amount * h * jitter(seed, 2 * k + 1),
+                ]
+            } else {
+                *p
+            }
+        })
+        .collect();
+    let mesh = Mesh::new(
+        ElementKind::Tri3,
+        nodes,
+        linear.connectivity().to_vec(),
+        linear.regions().to_vec(),
+    )
+    .unwrap();
+    if kind == ElementKind::Tri3 {
+        mesh
+    } else {
+        mesh.to_quadratic().unwrap()
+    }
+}
+
+/// A unit-cube-ish slab mesh with interior corner nodes moved.
+pub fn distorted_cube(kind: ElementKind, n: usize, amount: f64, seed: u64) -> Mesh<3> {
+    let plan = RectangleMesh::uniform(1.0, 1.0, n, n).unwrap();
+    let linear = SlabMesh::new(plan, 1.0, n)
+        .unwrap()
+        .build(ElementKind::Tet4)
+        .unwrap();
+    let h = 1.0 / n as f64;
+    let nodes: Vec<[f64; 3]> = linear
+        .nodes()
+        .iter()
+        .enumerate()
+        .map(|(k, p)| {
+            let interior = p[0] > 1e-12
+                && p[0] < 1.0 - 1e-12
+                && p[1] > 1e-12
+                && p[1] < 1.0 - 1e-12
+                && p[2].abs() < 0.5 - 1e-12;
+            if interior {
+                std::array::from_fn(|i| p[i] + amount * h * jitter(seed, 3 * k + i))
+            } else {
+                *p
+            }
+        })
+        .collect();
+    let mesh = Mesh::new(
+        ElementKind::Tet4,
+        nodes,
+        linear.connectivity().to_vec(),
+        linear.regions().to_vec(),
+    )
+    .unwrap();
+    if kind == ElementKind::Tet4 {
+        mesh
+    } else {
+        mesh.to_quadratic().unwrap()
+    }
+}
+
+/// Dense copy of a sparse matrix.
+pub fn dense(matrix: &faer::sparse::SparseColMat<usize, f64>) -> nalgebra::DMatrix<f64> {
+    let s = matrix.symbolic();
+    let mut d = nalgebra::DMatrix::zeros(s.nrows(), s.ncols());
+    for j in 0..s.ncols() {
+        for p in s.col_ptr()[j]..s.col_ptr()[j + 1] {
+            d[(s.row_idx()[p], j)] += matrix.val()[p];
+        }
+    }
+    d
+}

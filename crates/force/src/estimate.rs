@@ -1,0 +1,373 @@
+//! The regularised shaft force estimator: the axial force density along the
+//! needle, $q(s)$, from the marker displacements of one frame,
+//!
+//! $$\hat q = \arg\min_q\ |W(Gq - u)|^2 + \lambda\,|Lq|^2,$$
+//!
+//! with the force support restricted to the needle line (the unknowns are
+//! station values of $q$ between the entry and the tip), $G$ the model's
+//! response ([`crate::respond`]), $W$ the inverse marker noise, $L$ a
+//! difference operator along the shaft, and $\lambda$ from the discrepancy
+//! principle or GCV ([`crate::regularise`]). With the slab model this is the
+//! paper's equation (6) solved as the linear least-squares problem it is.
+
+use nalgebra::{DMatrix, DVector};
+use serde::{Deserialize, Serialize};
+
+use crate::error::ForceError;
+use crate::observe::{Frame, GridIndex, Insertion};
+use crate::regularise::{LambdaChoice, Regularisation, solve_regularised};
+use crate::respond::{MaterialField, ModelOptions, ShaftResponse};
+use crate::shaft::{ShaftBasis, ShaftPath, Smoothness};
+
+/// Options of the regularised estimator.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct EstimatorOptions {
+    /// The elastic model.
+    pub model: ModelOptions,
+    /// How $\lambda$ is chosen.
+    pub regularisation: Regularisation,
+    /// The smoothness prior.
+    pub smoothness: Smoothness,
+    /// Largest spacing of the density stations along the shaft (m).
+    pub shaft_spacing: f64,
+}
+
+impl EstimatorOptions {
+    /// The 3-D slab estimator (equation (6)) with `regularisation`:
+    /// first-difference prior, stations at most 1.5 mm apart.
+    pub fn slab(regularisation: Regularisation) -> Self {
+        Self {
+            model: ModelOptions::slab(),
+            regularisation,
+            smoothness: Smoothness::FirstDifference,
+            shaft_spacing: 1.5e-3,
+        }
+    }
+
+    /// The same estimator with the plane-strain model.
+    pub fn plane(regularisation: Regularisation) -> Self {
+        Self {
+            model: ModelOptions::plane(),
+            ..Self::slab(regularisation)
+        }
+    }
+}
+
+/// The estimated axial force density along the shaft at one frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ShaftDistribution {
+    /// Frame time (s).
+    pub t: f64,
+    /// Entry point of the needle in the rest frame (m).
+    pub entry: [f64; 2],
+    /// Shaft length in the rest frame, entry to material tip (m).
+    pub length: f64,
+    /// Station arc lengths from the entry (m).
+    pub stations: Vec<f64>,
+    /// Axial force density at the stations (N/m).
+    pub density: Vec<f64>,
+    /// One standard deviation of the density from the marker noise (N/m).
+    pub density_sigma: Vec<f64>,
+    /// $\int_0^L q\,ds$ (N).
+    pub integrated: f64,
+    /// One standard deviation of `integrated` from the marker noise (N).
+    pub integrated_sigma: f64,
+    /// Axial base force measured by the sensor, $f \cdot$ axis (N).
+    pub base_force: f64,
+    /// The regularisation weight.
+    pub lambda: f64,
+    /// How it was chosen; [`LambdaChoice::DiscrepancyAtModelFloor`] and
+    /// [`LambdaChoice::GcvAfterUnreachableDiscrepancy`] flag a model that
+    /// does not fit the data to the stated noise.
+    pub choice: LambdaChoice,
+    /// Root-mean-square marker residual (m).
+    pub residual_rms: f64,
+    /// Marker coordinates used.
+    pub data_count: usize,
+}
+
+impl ShaftDistribution {
+    /// True when the fit did not reach the stated noise level (the estimate
+    /// then carries model error that its `sigma`s do not include).
+    pub fn is_flagged(&self) -> bool {
+        matches!(
+            self.choice,
+            LambdaChoice::GcvAfterUnreachableDiscrepancy | LambdaChoice::DiscrepancyAtModelFloor
+        )
+    }
+
+    /// The density at arc length `s` (linear between stations, zero outside).
+    pub fn density_at(&self, s: f64) -> f64 {
+        ShaftBasis {
+            stations: self.stations.clone(),
+        }
+        .evaluate(&self.density, s)
+    }
+}
+
+/// The estimator for one needle insertion: one model factorisation and one
+/// set of unit responses serve every frame of the trial.
+#[derive(Debug, Clone)]
+pub struct ShaftEstimator {
+    options: EstimatorOptions,
+    grid: GridIndex,
+    response: ShaftResponse,
+}
+
+impl ShaftEstimator {
+    /// Builds the model for the needle line of `insertion` (the median entry
+    /// x of its frames).
+    pub fn new(
+        insertion: &Insertion,
+        material: &MaterialField,
+        options: EstimatorOptions,
+    ) -> Result<Self, ForceError> {
+        crate::error::positive("shaft spacing", options.shaft_spacing)?;
+        let grid = insertion.layout.grid()?;
+        let paths: Vec<ShaftPath> = insertion
+            .frames
+            .iter()
+            .map(|f| ShaftPath::from_frame(f, &insertion.layout, &grid))
+            .collect::<Result<_, _>>()?;
+        if paths.is_empty() {
+            return Err(ForceError::NoFramesInContact {
+                trial: insertion.trial.clone(),
+            });
+        }
+        let median = |mut v: Vec<f64>| {
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        };
+        let entry_x = median(paths.iter().map(|p| p.entry[0]).collect());
+        let angle = median(paths.iter().map(|p| p.axis[0].atan2(p.axis[1])).collect());
+        // A straight insertion stays exactly on +y (the model then puts the
+        // needle on a mesh line).
+        let axis = if angle.abs() <= 1e-9 {
+            [0.0, 1.0]
+        } else {
+            [angle.sin(), angle.cos()]
+        };
+        let response = ShaftResponse::new(
+            &insertion.phantom,
+            &insertion.layout,
+            &grid,
+            material,
+            options.model,
+            [entry_x, 0.0],
+            axis,
+        )?;
+        Ok(Self {
+            options,
+            grid,
+            response,
+        })
+    }
+
+    /// The model's response.
+    pub fn response(&self) -> &ShaftResponse {
+        &self.response
+    }
+
+    /// The distribution at one frame of `insertion`.
+    ///
+    /// Errors: a needle that is not straight along +y, or whose entry is more
+    /// than a quarter marker spacing from the model's needle line; fewer
+    /// tracked marker coordinates than unknowns.
+    pub fn estimate(
+        &self,
+        insertion: &Insertion,
+        frame: &Frame,
+    ) -> Result<ShaftDistribution, ForceError> {
+        let path = ShaftPath::from_frame(frame, &insertion.layout, &self.grid)?;
+        let (entry, axis) = (self.response.entry(), self.response.axis());
+        let turn = path.axis[0] * axis[1] - path.axis[1] * axis[0];
+        if (path.entry[0] - entry[0]).abs() > 0.25 * self.grid.spacing() || turn.abs() > 1e-3 {
+            return Err(ForceError::Mismatch(format!(
+                "frame at t = {} s: the needle enters at x = {} m with axis {:?}, off the model's needle line (x = {} m, axis {:?})",
+                frame.t, path.entry[0], path.axis, entry[0], axis
+            )));
+        }
+        if path.length > insertion.phantom.depth {
+            return Err(ForceError::BadShaft {
+                length: path.length,
+                reason: "the tip is beyond the back face",
+            });
+        }
+        // The material tip: the marker-based guess of `ShaftPath`, then the
+        // model's own mid-plane displacement at the tip (top-face markers
+        // move less than the needle line under the slab's out-of-plane
+        // deformation), a few fixed-point steps.
+        let spatial_reach = (frame.tip[0] - entry[0]) * axis[0] + frame.tip[1] * axis[1];
+        let mut length = path.length;
+        let mut solved = self.solve_at(insertion, frame, length)?;
+        for _ in 0..TIP_ITERATIONS {
+            let q = DVector::from_column_slice(&solved.density);
+            let tip_shift = (self.response.line_displacement_row(&solved.basis, length)? * q)[0];
+            let next = spatial_reach - tip_shift;
+            if !(next > 0.0 && next <= insertion.phantom.depth) {
+                return Err(ForceError::BadShaft {
+                    length: next,
+                    reason: "the material tip left the phantom",
+                });
+            }
+            let converged = (next - length).abs() < 1e-6;
+            length = next;
+            solved = self.solve_at(insertion, frame, length)?;
+            if converged {
+                break;
+            }
+        }
+        Ok(solved.into_distribution(frame))
+    }
+
+    /// The regularised fit for a shaft of material `length`.
+    fn solve_at(
+        &self,
+        insertion: &Insertion,
+        frame: &Frame,
+        length: f64,
+    ) -> Result<Solved, ForceError> {
+        let basis = ShaftBasis::new(length, self.options.shaft_spacing)?;
+        let g = self.response.response_matrix(&basis)?;
+        // Whitening: per-row tracking sigma if the track has it, else the
+        // stated noise, else 1 (GCV does not depend on the scale).
+        let stated = match self.options.regularisation {
+            Regularisation::Discrepancy { sigma } => Some(sigma),
+            _ => insertion.marker_sigma,
+        };
+        let mut rows = Vec::new();
+        let mut data = Vec::new();
+        let mut weights = Vec::new();
+        for (k, d) in frame.displacement.iter().enumerate() {
+            let Some(d) = d else { continue };
+            let row_sigma = frame.sigma.as_ref().and_then(|s| s[k]);
+            for c in 0..2 {
+                let sigma = row_sigma.map(|s| s[c]).or(stated).unwrap_or(1.0);
+                crate::error::positive("marker sigma", sigma)?;
+                rows.push(2 * k + c);
+                data.push(d[c]);
+                weights.push(1.0 / sigma);
+            }
+        }
+        if rows.len() < basis.len() + 2 {
+            return Err(ForceError::TooFewMarkers {
+                context: "shaft force distribution (tracked marker coordinates)",
+                found: rows.len(),
+                required: basis.len() + 2,
+            });
+        }
+        let a = DMatrix::from_fn(rows.len(), basis.len(), |r, j| weights[r] * g[(rows[r], j)]);
+        let b = DVector::from_fn(rows.len(), |r, _| weights[r] * data[r]);
+        let l = basis.difference_operator(self.options.smoothness);
+        let regularisation = match self.options.regularisation {
+            // The data are whitened already: unit noise.
+            Regularisation::Discrepancy { .. } => Regularisation::Discrepancy { sigma: 1.0 },
+            other => other,
+        };
+        let fit = solve_regularised(&a, &b, &l, regularisation)?;
+        // Covariance of q for whitened data: C A^T A C, scaled by the
+        // residual variance when the noise is not known.
+        let noise_known = stated.is_some() || frame.sigma.is_some();
+        let variance_scale = if noise_known {
+            1.0
+        } else {
+            fit.residual_squared / (fit.data_count as f64 - fit.effective_parameters).max(1.0)
+        };
+        let covariance =
+            &fit.inverse_normal * (a.transpose() * &a) * &fit.inverse_normal * variance_scale;
+        let w = DVector::from_vec(basis.weights());
+        let integrated = w.dot(&fit.solution);
+        let integrated_sigma = (w.transpose() * &covariance * &w)[(0, 0)].max(0.0).sqrt();
+        let residual: f64 = (0..rows.len())
+            .map(|r| {
+                let predicted: f64 = (0..basis.len())
+                    .map(|j| g[(rows[r], j)] * fit.solution[j])
+                    .sum();
+                (predicted - data[r]).powi(2)
+            })
+            .sum();
+        Ok(Solved {
+            entry: self.response.entry(),
+            density: fit.solution.iter().copied().collect(),
+            density_sigma: (0..basis.len())
+                .map(|j| covariance[(j, j)].max(0.0).sqrt())
+                .collect(),
+            basis,
+            integrated,
+            integrated_sigma,
+            lambda: fit.lambda,
+            choice: fit.choice,
+            residual_rms: (residual / rows.len() as f64).sqrt(),
+            data_count: rows.len(),
+        })
+    }
+}
+
+/// Fixed-point steps of the material tip.
+const TIP_ITERATIONS: usize = 4;
+
+/// One regularised fit, before it is tied to its frame.
+struct Solved {
+    entry: [f64; 2],
+    basis: ShaftBasis,
+    density: Vec<f64>,
+    density_sigma: Vec<f64>,
+    integrated: f64,
+    integrated_sigma: f64,
+    lambda: f64,
+    choice: LambdaChoice,
+    residual_rms: f64,
+    data_count: usize,
+}
+
+impl Solved {
+    fn into_distribution(self, frame: &Frame) -> ShaftDistribution {
+        let axis = frame.axis();
+        ShaftDistribution {
+            t: frame.t,
+            entry: self.entry,
+            length: self.basis.length(),
+            stations: self.basis.stations,
+            density: self.density,
+            density_sigma: self.density_sigma,
+            integrated: self.integrated,
+            integrated_sigma: self.integrated_sigma,
+            base_force: frame.base_force[0] * axis[0] + frame.base_force[1] * axis[1],
+            lambda: self.lambda,
+            choice: self.choice,
+            residual_rms: self.residual_rms,
+            data_count: self.data_count,
+        }
+    }
+}
+
+/// The shaft force distribution at frame `frame_index` of an insertion
+/// (builds the model; use [`ShaftEstimator`] to reuse it over frames).
+pub fn shaft_force_distribution(
+    insertion: &Insertion,
+    frame_index: usize,
+    material: &MaterialField,
+    options: EstimatorOptions,
+) -> Result<ShaftDistribution, ForceError> {
+    let frame = insertion.frames.get(frame_index).ok_or_else(|| {
+        ForceError::Mismatch(format!(
+            "frame {frame_index} requested, the insertion has {}",
+            insertion.frames.len()
+        ))
+    })?;
+    ShaftEstimator::new(insertion, material, options)?.estimate(insertion, frame)
+}
+
+/// The distributions at every frame of an insertion, one model for all.
+pub fn shaft_force_distributions(
+    insertion: &Insertion,
+    material: &MaterialField,
+    options: EstimatorOptions,
+) -> Result<Vec<ShaftDistribution>, ForceError> {
+    let estimator = ShaftEstimator::new(insertion, material, options)?;
+    insertion
+        .frames
+        .iter()
+        .map(|f| estimator.estimate(insertion, f))
+        .collect()
+}

@@ -1,0 +1,41 @@
+//! The `Problem` trait: what a model must provide to be fitted.
+
+use nalgebra::DMatrix;
+
+use crate::error::EvaluationError;
+
+/// A nonlinear least-squares problem `min_p ½ Σ_i r_i(p)²`.
+///
+/// The residuals must already be whitened by the caller: `r_i = (y_i -
+/// model_i(p)) / sigma_i`, or more generally `r = W^{1/2} (y - model(p))`.
+/// Then `chi2 = Σ r_i²` and, with [`CovarianceScaling::KnownNoise`](crate::CovarianceScaling),
+/// the reported covariance is the statistical one.
+///
+/// `Sync` is required because finite-difference Jacobian columns are
+/// evaluated in parallel (rayon), one column per parameter.
+pub trait Problem: Sync {
+    /// Number of parameters `n` (fixed ones included).
+    fn num_parameters(&self) -> usize;
+
+    /// Number of residuals `m`.
+    fn num_residuals(&self) -> usize;
+
+    /// Writes the `m` residuals at `params` (length `n`) into `out`.
+    ///
+    /// May fail (e.g. a singular finite-element system). A failure, or a
+    /// non-finite residual, at a trial point is a rejected step; only at the
+    /// starting point is it an error.
+    fn residuals(&self, params: &[f64], out: &mut [f64]) -> Result<(), EvaluationError>;
+
+    /// The analytic Jacobian `J_ij = ∂r_i/∂p_j` (an `m × n` matrix, already
+    /// sized and zeroed) if it is cheap to compute; `None` (the default)
+    /// means "use finite differences".
+    fn jacobian(
+        &self,
+        params: &[f64],
+        out: &mut DMatrix<f64>,
+    ) -> Option<Result<(), EvaluationError>> {
+        let _ = (params, out);
+        None
+    }
+}

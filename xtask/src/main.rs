@@ -1,0 +1,54 @@
+//! The project's task runner: `cargo xtask <command>`.
+//!
+//! A thin orchestrator over the library crates (in the style of
+//! rust-analyzer's xtask): argument parsing, output folders, progress and the
+//! HTML report live here; every computation lives in a library crate.
+//!
+//! - `cargo xtask pipeline`: the main job on the built-in default experiment.
+//! - `cargo xtask validate --bundle DIR`: check a measurement bundle.
+//! - `cargo xtask track ...`: track a trial's camera frames into `markers.csv`.
+
+mod bundle_commands;
+mod output;
+mod pipeline;
+mod plot;
+mod report;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(
+    name = "cargo xtask",
+    about = "needle: pipeline and developer commands"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run the end-to-end pipeline on the built-in default experiment.
+    Pipeline(pipeline::PipelineArgs),
+    /// Check a measurement bundle and print every problem with its file and line.
+    Validate(bundle_commands::ValidateArgs),
+    /// Track a trial's camera frames into a `markers.csv` of format 1.
+    Track(bundle_commands::TrackArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Pipeline(args) => pipeline::run(&args),
+        Command::Validate(args) => bundle_commands::validate(&args),
+        Command::Track(args) => bundle_commands::track(&args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(error) => {
+            eprintln!("error: {error}");
+            ExitCode::FAILURE
+        }
+    }
+}
