@@ -1,0 +1,437 @@
+//! The discretised phantom: a plane-strain mesh of 6-node triangles or a
+//! slab of 10-node tetrahedra (built by needle-fem), with point location
+//! and interpolation, which the truth needs to apply loads at material
+//! points and to read displacements at the markers.
+//!
+//! Geometry is handled dimension-free: nodes are padded to 3 coordinates
+//! (z = 0 in 2-D) and displacements are interleaved $(u_x, u_y[, u_z])$.
+
+use faer::sparse::SparseColMat;
+use needle_fem::assemble::Assembler;
+use needle_fem::element::ElementKind;
+use needle_fem::element::facet::simplex_mass;
+use needle_fem::element::shape::values_and_gradients;
+use needle_fem::material::{Formulation, Materials};
+use needle_fem::mesh::{BoundaryFacet, Mesh, RectangleMesh, SlabMesh};
+
+use crate::error::SynthError;
+use crate::scenario::Scenario;
+
+/// The meshed phantom.
+pub(crate) struct Body {
+    /// Spatial dimension (2 or 3).
+    pub dim: usize,
+    /// Nodes per element.
+    pub npe: usize,
+    /// Node coordinates, padded to 3.
+    pub nodes: Vec<[f64; 3]>,
+    elements: Vec<usize>,
+    /// Slab thickness (m).
+    pub thickness: f64,
+    /// Element size in the plane (m), the largest grid spacing.
+    pub element_size: f64,
+    assembly: Assembly,
+    locator: Locator,
+    boundary: Vec<BoundaryFacet>,
+    bounds: ([f64; 3], [f64; 3]),
+}
+
+enum Assembly {
+    Plane(Assembler<2>),
+    Slab(Assembler<3>),
+}
+
+/// Where a point lies: its element and the shape function values there.
+#[derive(Debug, Clone)]
+pub(crate) struct Location {
+    /// The element.
+    pub element: usize,
+    /// Shape function values at the point, one per element node.
+    pub shape: Vec<f64>,
+}
+
+impl Body {
+    /// Meshes the phantom of `scenario`: grid lines on every marker row and
+    /// column, on `x_lines` (needle lines, probe edges) and `y_lines` (layer
+    /// boundaries), each interval split to at most marker spacing /
+    /// refinement. 3-D when the scenario has `out_of_plane`.
+    pub fn build(
+        scenario: &Scenario,
+        x_lines: &[f64],
+        y_lines: &[f64],
+        region_of: impl Fn(f64) -> usize,
+    ) -> Result<Self, SynthError> {
+        let p = &scenario.phantom;
+        let r = &scenario.resolution;
+        let spacing_x = p.width / (p.markers.0 - 1) as f64;
+        let spacing_y = p.depth / (p.markers.1 - 1) as f64;
+        let target = spacing_x.min(spacing_y) / r.refinement as f64;
+        let xs = grid_lines(p.width, p.markers.0, x_lines, target);
+        let ys = grid_lines(p.depth, p.markers.1, y_lines, target);
+        let element_size = xs
+            .windows(2)
+            .chain(ys.windows(2))
+            .map(|w| w[1] - w[0])
+            .fold(0.0, f64::max);
+        let plan = RectangleMesh {
+            width: p.width,
+            depth: p.depth,
+            x_lines: xs,
+            y_lines: ys,
+        };
+        let (dim, npe, nodes, elements, assembly) = if scenario.effects.out_of_plane.is_some() {
+            let mut mesh: Mesh<3> =
+                SlabMesh::new(plan, p.thickness, r.layers)?.build(ElementKind::Tet10)?;
+            mesh.renumber_spatially();
+            mesh.assign_regions(|x| region_of(x[1]));
+            let nodes = mesh.nodes().to_vec();
+            let elements = mesh.connectivity().to_vec();
+            (
+                3,
+                10,
+                nodes,
+                elements,
+                Assembly::Slab(Assembler::new(mesh, Formulation::Solid)?),
+            )
+        } else {
+            let mut mesh: Mesh<2> = plan.build(ElementKind::Tri6)?;
+            mesh.renumber_spatially();
+            mesh.assign_regions(|x| region_of(x[1]));
+            let nodes = mesh.nodes().iter().map(|n| [n[0], n[1], 0.0]).collect();
+            let elements = mesh.connectivity().to_vec();
+            let formulation = Formulation::PlaneStrain {
+                thickness: p.thickness,
+            };
+            (
+                2,
+                6,
+                nodes,
+                elements,
+                Assembly::Plane(Assembler::new(mesh, formulation)?),
+            )
+        };
+        let boundary = match &assembly {
+            Assembly::Plane(a) => a.mesh().boundary_facets(),
+            Assembly::Slab(a) => a.mesh().boundary_facets(),
+        };
+        let locator = Locator::new(&nodes, &elements, npe, dim, element_size, p.width, p.depth);
+        let mut bounds = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+        for n in &nodes {
+            for c in 0..3 {
+                bounds.0[c] = bounds.0[c].min(n[c]);
+                bounds.1[c] = bounds.1[c].max(n[c]);
+            }
+        }
+        Ok(Self {
+            dim,
+            npe,
+            nodes,
+            elements,
+            thickness: p.thickness,
+            element_size,
+            assembly,
+            locator,
+            boundary,
+            bounds,
+        })
+    }
+
+    /// Lower and upper corners of the body's box.
+    pub fn bounds(&self) -> ([f64; 3], [f64; 3]) {
+        self.bounds
+    }
+
+    /// Number of degrees of freedom.
+    pub fn dof_count(&self) -> usize {
+        self.nodes.len() * self.dim
+    }
+
+    /// Number of elements.
+    pub fn element_count(&self) -> usize {
+        self.elements.len() / self.npe
+    }
+
+    /// Global nodes of element `e`.
+    pub fn element(&self, e: usize) -> &[usize] {
+        &self.elements[e * self.npe..(e + 1) * self.npe]
+    }
+
+    /// Region (layer) of every element.
+    pub fn regions(&self) -> &[usize] {
+        match &self.assembly {
+            Assembly::Plane(a) => a.mesh().regions(),
+            Assembly::Slab(a) => a.mesh().regions(),
+        }
+    }
+
+    /// The linear elastic stiffness matrix with one material per region
+    /// (full symmetric storage, no boundary conditions).
+    pub fn stiffness(&self, materials: &Materials) -> Result<SparseColMat<usize, f64>, SynthError> {
+        Ok(match &self.assembly {
+            Assembly::Plane(a) => a.stiffness(materials)?,
+            Assembly::Slab(a) => a.stiffness(materials)?,
+        })
+    }
+
+    /// The out-of-plane factor of 2-D integrals: the slab thickness for the
+    /// plane-strain mesh, 1 for the slab.
+    pub fn plane_factor(&self) -> f64 {
+        if self.dim == 2 { self.thickness } else { 1.0 }
+    }
+
+    /// z of the marker face: the top face of the slab, 0 for the plane.
+    pub fn marker_z(&self) -> f64 {
+        if self.dim == 3 {
+            0.5 * self.thickness
+        } else {
+            0.0
+        }
+    }
+
+    /// Nodes whose position satisfies `predicate`.
+    pub fn nodes_where(&self, predicate: impl Fn([f64; 3]) -> bool) -> Vec<usize> {
+        (0..self.nodes.len())
+            .filter(|&n| predicate(self.nodes[n]))
+            .collect()
+    }
+
+    /// Boundary facets (edges in 2-D, faces in 3-D) whose nodes all satisfy
+    /// `predicate`.
+    pub fn boundary_facets_where(&self, predicate: impl Fn([f64; 3]) -> bool) -> Vec<Vec<usize>> {
+        self.boundary
+            .iter()
+            .filter(|f| f.nodes.iter().all(|&n| predicate(self.nodes[n])))
+            .map(|f| f.nodes.clone())
+            .collect()
+    }
+
+    /// Every element as a patch of nodes (for area integrals over the plane
+    /// mesh).
+    pub fn element_patches(&self) -> Vec<Vec<usize>> {
+        (0..self.element_count())
+            .map(|e| self.element(e).to_vec())
+            .collect()
+    }
+
+    /// Triplets `(row, col, value)` of distributed springs: over each patch
+    /// (a simplex of parametric dimension `param_dim` given by its nodes),
+    /// $\int N_a N_b\,dA$ times `scale` times the stiffness of each listed
+    /// displacement component `(component, stiffness per unit area)`.
+    pub fn distributed_springs(
+        &self,
+        patches: &[Vec<usize>],
+        param_dim: usize,
+        scale: f64,
+        components: &[(usize, f64)],
+    ) -> Vec<(usize, usize, f64)> {
+        let mut triplets = Vec::new();
+        for patch in patches {
+            let coordinates: Vec<[f64; 3]> = patch.iter().map(|&n| self.nodes[n]).collect();
+            let mass = simplex_mass(&coordinates, param_dim, 2);
+            let m = patch.len();
+            for a in 0..m {
+                for b in 0..m {
+                    for &(c, k) in components {
+                        triplets.push((
+                            patch[a] * self.dim + c,
+                            patch[b] * self.dim + c,
+                            scale * k * mass[a * m + b],
+                        ));
+                    }
+                }
+            }
+        }
+        triplets
+    }
+
+    /// The element containing `point` and the shape values there, if the
+    /// point lies in the body (up to a relative tolerance).
+    pub fn locate(&self, point: [f64; 3]) -> Option<Location> {
+        let (element, xi) = self.locator.find(point, self.dim)?;
+        let (shape, _) = values_and_gradients(self.dim, self.npe, &xi[..self.dim]);
+        Some(Location { element, shape })
+    }
+
+    /// The displacement gradient $\partial u_i/\partial X_j$ at `point`
+    /// (zero rows and columns beyond the dimension), if inside.
+    pub fn gradient(&self, point: [f64; 3], u: &[f64]) -> Option<[[f64; 3]; 3]> {
+        let (element, xi) = self.locator.find(point, self.dim)?;
+        let (_, reference) = values_and_gradients(self.dim, self.npe, &xi[..self.dim]);
+        let inverse = &self.locator.maps[element].1;
+        let mut h = [[0.0; 3]; 3];
+        for (a, &n) in self.element(element).iter().enumerate() {
+            // Physical gradient of N_a: J^-T times its reference gradient.
+            let mut g = [0.0; 3];
+            for j in 0..self.dim {
+                g[j] = (0..self.dim).map(|k| inverse[k][j] * reference[a][k]).sum();
+            }
+            for i in 0..self.dim {
+                for j in 0..self.dim {
+                    h[i][j] += u[n * self.dim + i] * g[j];
+                }
+            }
+        }
+        Some(h)
+    }
+
+    /// The displacement at a located point.
+    pub fn value(&self, at: &Location, u: &[f64]) -> [f64; 3] {
+        let mut v = [0.0; 3];
+        for (a, &n) in self.element(at.element).iter().enumerate() {
+            for c in 0..self.dim {
+                v[c] += at.shape[a] * u[n * self.dim + c];
+            }
+        }
+        v
+    }
+
+    /// Adds a point force at a located point to the load vector, spread to
+    /// the element nodes by the shape functions (consistent nodal forces).
+    pub fn add_point_force(&self, at: &Location, force: [f64; 3], loads: &mut [f64]) {
+        for (a, &n) in self.element(at.element).iter().enumerate() {
+            for c in 0..self.dim {
+                loads[n * self.dim + c] += at.shape[a] * force[c];
+            }
+        }
+    }
+}
+
+/// Grid lines over `[0, extent]`: `count` equally spaced marker lines plus
+/// `extra` lines, every interval split into pieces no longer than `target`.
+/// Extra lines closer than a twentieth of `target` to another are dropped.
+fn grid_lines(extent: f64, count: usize, extra: &[f64], target: f64) -> Vec<f64> {
+    let mut lines: Vec<f64> = (0..count)
+        .map(|i| extent * i as f64 / (count - 1) as f64)
+        .collect();
+    for &x in extra {
+        if x > 0.0 && x < extent && lines.iter().all(|&l| (l - x).abs() > 0.05 * target) {
+            lines.push(x);
+        }
+    }
+    lines.sort_by(f64::total_cmp);
+    let mut out = vec![lines[0]];
+    for w in lines.windows(2) {
+        let pieces = ((w[1] - w[0]) / target - 1e-9).ceil().max(1.0) as usize;
+        for k in 1..=pieces {
+            out.push(w[0] + (w[1] - w[0]) * k as f64 / pieces as f64);
+        }
+    }
+    out
+}
+
+/// Bucket grid over the (x, y) plan for point location; every element is
+/// listed in each bucket its bounding box touches.
+struct Locator {
+    cell: f64,
+    nx: usize,
+    ny: usize,
+    buckets: Vec<Vec<usize>>,
+    /// Per element: first corner and the inverse of the corner Jacobian,
+    /// `xi = inverse * (p - origin)`.
+    maps: Vec<([f64; 3], [[f64; 3]; 3])>,
+    tolerance: f64,
+}
+
+impl Locator {
+    fn new(
+        nodes: &[[f64; 3]],
+        elements: &[usize],
+        npe: usize,
+        dim: usize,
+        cell: f64,
+        width: f64,
+        depth: f64,
+    ) -> Self {
+        let nx = (width / cell).ceil() as usize + 1;
+        let ny = (depth / cell).ceil() as usize + 1;
+        let mut buckets = vec![Vec::new(); nx * ny];
+        let mut maps = Vec::with_capacity(elements.len() / npe);
+        for (e, element) in elements.chunks(npe).enumerate() {
+            let corners: Vec<[f64; 3]> = element[..=dim].iter().map(|&n| nodes[n]).collect();
+            let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+            for c in &corners {
+                for k in 0..2 {
+                    lo[k] = lo[k].min(c[k]);
+                    hi[k] = hi[k].max(c[k]);
+                }
+            }
+            let (i0, j0) = (
+                ((lo[0] / cell).floor().max(0.0)) as usize,
+                ((lo[1] / cell).floor().max(0.0)) as usize,
+            );
+            let (i1, j1) = (
+                ((hi[0] / cell).floor() as usize).min(nx - 1),
+                ((hi[1] / cell).floor() as usize).min(ny - 1),
+            );
+            for j in j0..=j1 {
+                for i in i0..=i1 {
+                    buckets[j * nx + i].push(e);
+                }
+            }
+            let mut jac = [[0.0; 3]; 3];
+            for k in 0..3 {
+                jac[k][k] = 1.0;
+            }
+            for col in 0..dim {
+                for row in 0..dim {
+                    jac[row][col] = corners[col + 1][row] - corners[0][row];
+                }
+            }
+            maps.push((corners[0], invert3(&jac)));
+        }
+        Self {
+            cell,
+            nx,
+            ny,
+            buckets,
+            maps,
+            tolerance: 1e-9,
+        }
+    }
+
+    /// The element holding `p` and its reference coordinates; of several
+    /// (on shared faces) the one where `p` lies deepest inside.
+    fn find(&self, p: [f64; 3], dim: usize) -> Option<(usize, [f64; 3])> {
+        let i = (p[0] / self.cell).floor();
+        let j = (p[1] / self.cell).floor();
+        if !(i >= -1.0 && j >= -1.0) {
+            return None;
+        }
+        let i = (i.max(0.0) as usize).min(self.nx - 1);
+        let j = (j.max(0.0) as usize).min(self.ny - 1);
+        let mut best: Option<(usize, [f64; 3], f64)> = None;
+        for &e in &self.buckets[j * self.nx + i] {
+            let (origin, inverse) = &self.maps[e];
+            let d = [p[0] - origin[0], p[1] - origin[1], p[2] - origin[2]];
+            let mut xi = [0.0; 3];
+            for r in 0..dim {
+                xi[r] = (0..dim).map(|c| inverse[r][c] * d[c]).sum();
+            }
+            let l0 = 1.0 - xi[..dim].iter().sum::<f64>();
+            let inside = xi[..dim].iter().copied().fold(l0, f64::min);
+            if best.as_ref().is_none_or(|b| inside > b.2) {
+                best = Some((e, xi, inside));
+            }
+        }
+        best.filter(|b| b.2 >= -self.tolerance)
+            .map(|(e, xi, _)| (e, xi))
+    }
+}
+
+/// Inverse of a 3x3 matrix (the padded Jacobian of a straight simplex,
+/// never singular for a valid mesh).
+pub(crate) fn invert3(m: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let c = |r: usize, k: usize| {
+        let (r1, r2) = ((r + 1) % 3, (r + 2) % 3);
+        let (k1, k2) = ((k + 1) % 3, (k + 2) % 3);
+        m[r1][k1] * m[r2][k2] - m[r1][k2] * m[r2][k1]
+    };
+    let det = m[0][0] * c(0, 0) + m[0][1] * c(0, 1) + m[0][2] * c(0, 2);
+    let mut inv = [[0.0; 3]; 3];
+    for r in 0..3 {
+        for k in 0..3 {
+            inv[k][r] = c(r, k) / det;
+        }
+    }
+    inv
+}

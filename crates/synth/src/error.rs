@@ -1,0 +1,74 @@
+//! The crate's error type.
+
+use std::path::PathBuf;
+
+/// Why a scenario could not be loaded or a campaign not generated.
+#[derive(Debug, thiserror::Error)]
+pub enum SynthError {
+    /// The scenario file could not be read.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file concerned.
+        path: PathBuf,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+    /// The scenario file is not valid RON for a [`crate::Scenario`] (syntax,
+    /// unknown or missing field); the message names the field and position.
+    #[error("{path}:{line}:{column}: {message}")]
+    Parse {
+        /// The scenario file.
+        path: PathBuf,
+        /// 1-based line of the problem.
+        line: usize,
+        /// 1-based column of the problem.
+        column: usize,
+        /// What is wrong, with the field name when there is one.
+        message: String,
+    },
+    /// A scenario field has a value outside its physical or practical range.
+    #[error("{source_name}: field `{field}`: {reason}")]
+    InvalidField {
+        /// The scenario file, or the scenario's name when built in code.
+        source_name: String,
+        /// Dotted path of the field, e.g. `phantom.poisson_ratio`.
+        field: String,
+        /// Why the value is rejected.
+        reason: String,
+    },
+    /// The finite element library rejected the discretisation.
+    #[error("finite element setup: {0}")]
+    Fem(#[from] needle_fem::error::FemError),
+    /// A stiffness matrix could not be factorised (not positive definite:
+    /// the body is not held against rigid motion).
+    #[error("factorising the stiffness matrix of {what} failed: {reason}")]
+    Factorisation {
+        /// Which system.
+        what: String,
+        /// faer's message.
+        reason: String,
+    },
+    /// The Newton iteration of the nonlinear material did not converge.
+    #[error(
+        "Newton iteration did not converge in {what} (residual {residual:e} N after {iterations} iterations)"
+    )]
+    NoConvergence {
+        /// Which solve.
+        what: String,
+        /// Final residual norm (N).
+        residual: f64,
+        /// Iterations done.
+        iterations: usize,
+    },
+    /// Writing the bundle failed (or it would overwrite one).
+    #[error("writing the bundle: {0}")]
+    Bundle(#[from] needle_data::BundleError),
+    /// The ground-truth file exists already or lies inside the bundle folder.
+    #[error("ground truth file {path}: {reason}")]
+    TruthPath {
+        /// The requested path.
+        path: PathBuf,
+        /// Why it cannot be written.
+        reason: String,
+    },
+}

@@ -1,0 +1,63 @@
+//! needle-synth: the truth world. It generates realistic measured data, a
+//! measurement bundle, from physics at higher fidelity than any model the
+//! pipeline fits, with physical effects hidden in it, and writes the
+//! ground truth (effects present, every true value) beside the bundle.
+//!
+//! # Where it sits
+//!
+//! `fem` (meshes, element stiffness, assembly) and `data` (the bundle
+//! writer) -> **synth** -> `xtask` (`cargo xtask synth --scenario FILE
+//! --out DIR`). The truth calls the FEM crate for meshing and the linear
+//! stiffness matrix only; it implements every effect itself (one file per
+//! effect in [`effect`], each documenting its physics), and its own point
+//! location, loads, constraints, solver set-up, hyperelastic Newton solver,
+//! needle-tip consistency and sensor models. It does not fit anything and
+//! shares no code with the model crates.
+//!
+//! # The truth
+//!
+//! - A scenario ([`Scenario`], RON) gives the phantom, the material, the
+//!   resolution, the sensors, the experiments (compression test, boundary
+//!   probing, needle insertions at several velocities on several days,
+//!   each along a new line) and the effects present.
+//! - Without `out_of_plane` the phantom is a plane-strain mesh of 6-node
+//!   triangles; with it, a slab of 10-node tetrahedra with several layers
+//!   through the thickness, markers read on the top face, the needle load
+//!   on the mid-plane.
+//! - A linear truth factorises $K$ once per day (and once per probe, whose
+//!   face is held) and every state is a back-substitution; all needle
+//!   trials of a day share the factorisation and advance together.
+//! - Needle shaft loads act at the material points whose deformed images
+//!   lie on the needle ([`needle`]); the tool force is their integral.
+//! - Measurements: force sensor noise and quantisation, Gaussian marker
+//!   noise, at the sensor and camera rates ([`sensor`]).
+//!
+//! # Entry points
+//!
+//! [`load_scenario`], [`Scenario::paper_default`], [`Scenario::quick`],
+//! [`generate`].
+
+pub mod effect;
+pub mod error;
+pub mod generate;
+pub mod needle;
+pub mod scenario;
+pub mod sensor;
+pub mod truth;
+
+mod body;
+mod presets;
+mod probe;
+mod shaft;
+mod strain;
+mod system;
+mod world;
+
+#[cfg(test)]
+mod tests;
+
+pub use effect::{EffectId, Effects};
+pub use error::SynthError;
+pub use generate::{Stage, Summary, TrialResponse, generate, respond};
+pub use scenario::{Scenario, load_scenario};
+pub use truth::GroundTruth;

@@ -1,0 +1,197 @@
+//! Built-in scenarios: the paper's default campaign and a quick one for CI.
+
+use crate::effect::{
+    CompliantSupport, EffectId, Effects, LayeredStiffness, LensDistortion, MaterialNonlinearity,
+    MaterialStiffening, OutOfPlane, PlatformFriction, TipCuttingForce, VelocityDependentFriction,
+};
+use crate::scenario::{
+    CompressionTest, Needles, PhantomSpec, ProbeTrial, Resolution, Scenario, Sensors, Shaft,
+};
+
+impl Scenario {
+    /// The paper's campaign (DiMaio & Salcudean): a 75 x 75 x 7.5 mm PVC
+    /// slab, E = 25.3 kPa, nu = 0.48, 21 x 21 markers, back face fixed;
+    /// a compression test, four probes, insertions at 1, 3, 5, 7 and 9 mm/s
+    /// on two days; with the effects the paper reports: out-of-plane
+    /// deformation, velocity-dependent friction, the tip peak and
+    /// stiffening over days. Stored too as
+    /// `fixtures/scenarios/paper-default.ron`.
+    pub fn paper_default() -> Self {
+        Scenario {
+            name: "paper-default".into(),
+            seed: 2005,
+            phantom: PhantomSpec {
+                width: 0.075,
+                depth: 0.075,
+                thickness: 0.0075,
+                youngs_modulus: 25_300.0,
+                poisson_ratio: 0.48,
+                markers: (21, 21),
+            },
+            resolution: Resolution {
+                refinement: 1,
+                layers: 2,
+                depth_step: 0.001,
+                shaft_step: 0.0005,
+                indentation_step: 0.0005,
+            },
+            shaft: Shaft {
+                density: 8.0,
+                reference_velocity: 0.001,
+            },
+            sensors: Sensors {
+                force_rate: 100.0,
+                force_resolution: 0.0125,
+                force_sigma: 0.005,
+                camera_rate: 30.0,
+                marker_sigma: 8e-6,
+            },
+            compression: Some(CompressionTest {
+                side: 0.03,
+                height: 0.01,
+                max_strain: 0.3,
+                samples: 31,
+                day: 6.0,
+            }),
+            probes: [0.015, 0.03, 0.045, 0.06]
+                .into_iter()
+                .map(|x| ProbeTrial {
+                    x,
+                    indentation: 0.003,
+                    velocity: 0.001,
+                    width: 0.004,
+                    day: 1.0,
+                })
+                .collect(),
+            needles: Needles {
+                velocities: vec![0.001, 0.003, 0.005, 0.007, 0.009],
+                days: vec![2.0, 5.0],
+                depth: 0.05,
+                first_line: 0.012,
+                line_spacing: 0.0055,
+            },
+            effects: Effects {
+                out_of_plane: Some(OutOfPlane),
+                velocity_dependent_friction: Some(VelocityDependentFriction { slope: 60.0 }),
+                tip_cutting_force: Some(TipCuttingForce {
+                    amplitude: 1.0,
+                    offset: 0.002,
+                    width: 0.0015,
+                }),
+                material_stiffening: Some(MaterialStiffening {
+                    rate_per_day: 0.012,
+                }),
+                ..Effects::none()
+            },
+        }
+    }
+
+    /// A small campaign of the same phantom for CI: two probes, two
+    /// velocities on one day, 20 mm insertions.
+    pub fn quick() -> Self {
+        let mut s = Self::paper_default();
+        s.name = "quick".into();
+        s.compression = Some(CompressionTest {
+            samples: 7,
+            ..s.compression.expect("the default has one")
+        });
+        s.probes.truncate(2);
+        s.needles = Needles {
+            velocities: vec![0.003, 0.009],
+            days: vec![2.0],
+            depth: 0.02,
+            first_line: 0.02,
+            line_spacing: 0.02,
+        };
+        s
+    }
+
+    /// Two effects together: the compliant clamp and velocity-dependent
+    /// friction, in the plane-strain truth.
+    pub fn two_effects() -> Self {
+        let mut s = Self::null();
+        s.name = "compliant-support-and-velocity".into();
+        s.effects = Effects::none()
+            .with(EffectId::CompliantSupport)
+            .with(EffectId::VelocityDependentFriction);
+        s
+    }
+
+    /// The paper's campaign with no effect at all: the plane-strain null
+    /// truth.
+    pub fn null() -> Self {
+        Scenario {
+            name: "null".into(),
+            effects: Effects::none(),
+            ..Self::paper_default()
+        }
+    }
+
+    /// The null campaign with one effect switched on, at the value used in
+    /// `fixtures/scenarios/<id>.ron` (plane strain, except `out_of_plane`
+    /// itself). `material_nonlinearity` also pushes the probes 4 mm deep
+    /// and triples the shaft density, so that strains leave the linear
+    /// range.
+    pub fn effect_alone(effect: EffectId) -> Self {
+        let mut s = Self::null();
+        s.name = effect.as_str().replace('_', "-");
+        s.effects = Effects::none().with(effect);
+        if effect == EffectId::MaterialNonlinearity {
+            for probe in &mut s.probes {
+                probe.indentation = 0.004;
+            }
+            s.shaft.density *= 3.0;
+        }
+        s
+    }
+}
+
+impl Effects {
+    /// These effects plus `effect` at its catalog value (the value of the
+    /// effect-alone scenarios).
+    pub fn with(mut self, effect: EffectId) -> Self {
+        match effect {
+            EffectId::OutOfPlane => self.out_of_plane = Some(OutOfPlane),
+            EffectId::VelocityDependentFriction => {
+                self.velocity_dependent_friction = Some(VelocityDependentFriction { slope: 60.0 })
+            }
+            EffectId::TipCuttingForce => {
+                self.tip_cutting_force = Some(TipCuttingForce {
+                    amplitude: 1.0,
+                    offset: 0.002,
+                    width: 0.0015,
+                })
+            }
+            EffectId::LayeredStiffness => {
+                self.layered_stiffness = Some(LayeredStiffness {
+                    boundaries: vec![0.025, 0.05],
+                    moduli: vec![25_300.0, 50_600.0, 25_300.0],
+                })
+            }
+            EffectId::MaterialStiffening => {
+                self.material_stiffening = Some(MaterialStiffening {
+                    rate_per_day: 0.012,
+                })
+            }
+            EffectId::CompliantSupport => {
+                self.compliant_support = Some(CompliantSupport {
+                    normal: 2e7,
+                    tangential: 2e7,
+                })
+            }
+            EffectId::PlatformFriction => {
+                self.platform_friction = Some(PlatformFriction { stiffness: 1e4 })
+            }
+            EffectId::LensDistortion => {
+                self.lens_distortion = Some(LensDistortion {
+                    k1: 0.3,
+                    centre: (0.0375, 0.0375),
+                })
+            }
+            EffectId::MaterialNonlinearity => {
+                self.material_nonlinearity = Some(MaterialNonlinearity)
+            }
+        }
+        self
+    }
+}

@@ -1,0 +1,353 @@
+//! The scenario: phantom, material, discretisation, sensors, experiments and
+//! hidden effects of one synthetic campaign, read from a RON file.
+//!
+//! Every struct rejects unknown fields, so a misspelt field is an error that
+//! names it; [`Scenario::validate`] then checks every value and names the
+//! offending field by its dotted path.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::effect::Effects;
+use crate::error::SynthError;
+
+/// One synthetic campaign: what the truth world simulates and measures.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scenario {
+    /// Campaign name, written as the bundle name.
+    pub name: String,
+    /// Seed of every random draw (measurement noise); same seed, same bundle.
+    pub seed: u64,
+    /// The slab and its material.
+    pub phantom: PhantomSpec,
+    /// How finely the truth is discretised.
+    pub resolution: Resolution,
+    /// The needle shaft force distribution without effects.
+    pub shaft: Shaft,
+    /// Force sensor and camera.
+    pub sensors: Sensors,
+    /// Unconfined compression test of a separate sample, if done.
+    #[serde(default)]
+    pub compression: Option<CompressionTest>,
+    /// Boundary probing trials on the front face.
+    pub probes: Vec<ProbeTrial>,
+    /// Needle insertion trials.
+    pub needles: Needles,
+    /// The physical effects present in the truth.
+    pub effects: Effects,
+}
+
+/// The phantom slab and its (baseline) material.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PhantomSpec {
+    /// Extent along x (m).
+    pub width: f64,
+    /// Extent along y, the insertion direction (m).
+    pub depth: f64,
+    /// Extent along z (m).
+    pub thickness: f64,
+    /// Young's modulus on day 0 (Pa).
+    pub youngs_modulus: f64,
+    /// Poisson's ratio.
+    pub poisson_ratio: f64,
+    /// Marker grid on the top face, `(columns along x, rows along y)`,
+    /// spanning the whole face; ids row-major from `y = 0`.
+    pub markers: (usize, usize),
+}
+
+/// Discretisation of the truth.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Resolution {
+    /// Element edge length in x and y is the marker spacing divided by this.
+    pub refinement: usize,
+    /// Element layers through the thickness (3-D truth only; even, so that
+    /// the mid-plane carrying the needle is a node plane).
+    pub layers: usize,
+    /// Tip depth between two solved states of a needle insertion (m);
+    /// camera frames and sensor samples in between are interpolated
+    /// linearly in depth.
+    pub depth_step: f64,
+    /// Length of one shaft integration segment (m); two Gauss points each.
+    pub shaft_step: f64,
+    /// Indentation between two solved states of a probe with the nonlinear
+    /// material (m); the linear truth is exactly proportional to it.
+    pub indentation_step: f64,
+}
+
+/// Shaft force density without effects.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Shaft {
+    /// Axial force per unit shaft length at the reference velocity (N/m).
+    pub density: f64,
+    /// Insertion velocity at which `density` holds (m/s).
+    pub reference_velocity: f64,
+}
+
+/// The force sensor and the camera.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Sensors {
+    /// Force sensor sample rate (Hz).
+    pub force_rate: f64,
+    /// Force quantisation step (N), 0.0125 for the paper's ATI Nano-17.
+    pub force_resolution: f64,
+    /// Gaussian force noise before quantisation, one sigma (N).
+    pub force_sigma: f64,
+    /// Camera frame rate (Hz).
+    pub camera_rate: f64,
+    /// Gaussian tracking noise per coordinate, one sigma (m).
+    pub marker_sigma: f64,
+}
+
+/// An unconfined compression test of a block cut from the same material.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CompressionTest {
+    /// Side of the square cross-section (m).
+    pub side: f64,
+    /// Height along the loading axis (m).
+    pub height: f64,
+    /// Largest compressive engineering strain.
+    pub max_strain: f64,
+    /// Number of curve points from 0 to `max_strain`.
+    pub samples: usize,
+    /// Day of the test since casting.
+    pub day: f64,
+}
+
+/// A blunt probe pressed on the front face `y = 0`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProbeTrial {
+    /// Centre of the probe on the front face (m).
+    pub x: f64,
+    /// Final indentation along +y (m).
+    pub indentation: f64,
+    /// Indentation speed (m/s).
+    pub velocity: f64,
+    /// Width of the flat probe face along x (m); it spans the thickness.
+    pub width: f64,
+    /// Day of the trial.
+    pub day: f64,
+}
+
+/// The needle insertions: every velocity once per day in `days`, each
+/// along its own line `x = first_line + k * line_spacing`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Needles {
+    /// Insertion velocities (m/s).
+    pub velocities: Vec<f64>,
+    /// One repeat of all velocities per entry (days since casting).
+    pub days: Vec<f64>,
+    /// Final tip depth (m).
+    pub depth: f64,
+    /// x of the first insertion line (m).
+    pub first_line: f64,
+    /// Distance between consecutive insertion lines (m).
+    pub line_spacing: f64,
+}
+
+/// One needle trial as the campaign runs it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct NeedlePlan {
+    /// x of the insertion line (m).
+    pub line: f64,
+    /// Insertion velocity (m/s).
+    pub velocity: f64,
+    /// Day of the trial.
+    pub day: f64,
+}
+
+impl Needles {
+    /// The needle trials in campaign order: day by day, velocities in the
+    /// listed order, each on the next unused line.
+    pub fn plan(&self) -> Vec<NeedlePlan> {
+        let mut plans = Vec::new();
+        for &day in &self.days {
+            for &velocity in &self.velocities {
+                let line = self.first_line + plans.len() as f64 * self.line_spacing;
+                plans.push(NeedlePlan {
+                    line,
+                    velocity,
+                    day,
+                });
+            }
+        }
+        plans
+    }
+}
+
+/// Reads and validates a scenario file.
+pub fn load_scenario(path: impl AsRef<Path>) -> Result<Scenario, SynthError> {
+    let path = path.as_ref();
+    let text = std::fs::read_to_string(path).map_err(|source| SynthError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let scenario: Scenario = ron::from_str(&text).map_err(|e| SynthError::Parse {
+        path: path.to_path_buf(),
+        line: e.span.start.line,
+        column: e.span.start.col,
+        message: e.code.to_string(),
+    })?;
+    scenario.validate(&path.display().to_string())?;
+    Ok(scenario)
+}
+
+/// Checks scenario values and names the field that fails.
+pub struct FieldChecker<'a> {
+    source: &'a str,
+}
+
+impl FieldChecker<'_> {
+    /// Fails with the field's name and `reason` unless `ok`.
+    pub fn check(
+        &self,
+        ok: bool,
+        field: &str,
+        reason: impl FnOnce() -> String,
+    ) -> Result<(), SynthError> {
+        if ok {
+            Ok(())
+        } else {
+            Err(SynthError::InvalidField {
+                source_name: self.source.to_string(),
+                field: field.to_string(),
+                reason: reason(),
+            })
+        }
+    }
+
+    /// The value must be positive and finite.
+    pub fn positive(&self, value: f64, field: &str) -> Result<(), SynthError> {
+        self.check(value.is_finite() && value > 0.0, field, || {
+            format!("must be positive and finite, got {value}")
+        })
+    }
+
+    /// The value must be non-negative and finite.
+    pub fn non_negative(&self, value: f64, field: &str) -> Result<(), SynthError> {
+        self.check(value.is_finite() && value >= 0.0, field, || {
+            format!("must be non-negative and finite, got {value}")
+        })
+    }
+
+    /// The value must lie in the open interval.
+    pub fn within(&self, value: f64, lo: f64, hi: f64, field: &str) -> Result<(), SynthError> {
+        self.check(value.is_finite() && value > lo && value < hi, field, || {
+            format!("must lie strictly between {lo} and {hi}, got {value}")
+        })
+    }
+}
+
+impl Scenario {
+    /// Checks every field; `source` names the file (or the scenario) in
+    /// the error.
+    pub fn validate(&self, source: &str) -> Result<(), SynthError> {
+        let c = FieldChecker { source };
+        let p = &self.phantom;
+        c.positive(p.width, "phantom.width")?;
+        c.positive(p.depth, "phantom.depth")?;
+        c.positive(p.thickness, "phantom.thickness")?;
+        c.positive(p.youngs_modulus, "phantom.youngs_modulus")?;
+        c.within(p.poisson_ratio, -1.0, 0.5, "phantom.poisson_ratio")?;
+        c.check(
+            p.markers.0 >= 2 && p.markers.1 >= 2,
+            "phantom.markers",
+            || format!("needs at least 2 x 2 markers, got {:?}", p.markers),
+        )?;
+        let r = &self.resolution;
+        c.check(
+            (1..=16).contains(&r.refinement),
+            "resolution.refinement",
+            || format!("must be 1 to 16, got {}", r.refinement),
+        )?;
+        c.check(
+            r.layers >= 2 && r.layers.is_multiple_of(2) && r.layers <= 16,
+            "resolution.layers",
+            || {
+                format!(
+                    "must be even, 2 to 16 (the mid-plane is a node plane), got {}",
+                    r.layers
+                )
+            },
+        )?;
+        c.positive(r.depth_step, "resolution.depth_step")?;
+        c.positive(r.shaft_step, "resolution.shaft_step")?;
+        c.positive(r.indentation_step, "resolution.indentation_step")?;
+        c.positive(self.shaft.density, "shaft.density")?;
+        c.positive(self.shaft.reference_velocity, "shaft.reference_velocity")?;
+        let s = &self.sensors;
+        c.positive(s.force_rate, "sensors.force_rate")?;
+        c.non_negative(s.force_resolution, "sensors.force_resolution")?;
+        c.non_negative(s.force_sigma, "sensors.force_sigma")?;
+        c.positive(s.camera_rate, "sensors.camera_rate")?;
+        c.non_negative(s.marker_sigma, "sensors.marker_sigma")?;
+        if let Some(t) = &self.compression {
+            c.positive(t.side, "compression.side")?;
+            c.positive(t.height, "compression.height")?;
+            c.within(t.max_strain, 0.0, 0.6, "compression.max_strain")?;
+            c.check(t.samples >= 2, "compression.samples", || {
+                format!("needs at least 2 points, got {}", t.samples)
+            })?;
+            c.non_negative(t.day, "compression.day")?;
+        }
+        for (i, probe) in self.probes.iter().enumerate() {
+            let f = |name: &str| format!("probes[{i}].{name}");
+            c.positive(probe.width, &f("width"))?;
+            c.check(
+                probe.x - probe.width / 2.0 > 0.0 && probe.x + probe.width / 2.0 < p.width,
+                &f("x"),
+                || {
+                    format!(
+                        "probe face [{}, {}] leaves the front face [0, {}]",
+                        probe.x - probe.width / 2.0,
+                        probe.x + probe.width / 2.0,
+                        p.width
+                    )
+                },
+            )?;
+            c.within(probe.indentation, 0.0, 0.25 * p.depth, &f("indentation"))?;
+            c.positive(probe.velocity, &f("velocity"))?;
+            c.non_negative(probe.day, &f("day"))?;
+        }
+        let n = &self.needles;
+        c.check(!n.velocities.is_empty(), "needles.velocities", || {
+            "needs at least one velocity".into()
+        })?;
+        for (i, &v) in n.velocities.iter().enumerate() {
+            c.positive(v, &format!("needles.velocities[{i}]"))?;
+        }
+        for (i, &d) in n.days.iter().enumerate() {
+            c.non_negative(d, &format!("needles.days[{i}]"))?;
+        }
+        c.within(n.depth, 0.0, p.depth, "needles.depth")?;
+        c.positive(n.line_spacing, "needles.line_spacing")?;
+        if let Some(last) = n.plan().last() {
+            c.check(
+                n.first_line > 0.0 && last.line < p.width,
+                "needles.first_line",
+                || {
+                    format!(
+                        "insertion lines {} .. {} leave the phantom width {}",
+                        n.first_line, last.line, p.width
+                    )
+                },
+            )?;
+        }
+        self.effects.validate(&c, self)?;
+        Ok(())
+    }
+
+    /// Writes the scenario as pretty RON.
+    pub fn to_ron(&self) -> String {
+        ron::ser::to_string_pretty(self, ron::ser::PrettyConfig::default().struct_names(true))
+            .expect("a scenario always serialises")
+    }
+}

@@ -1,0 +1,364 @@
+//! Unit tests of the truth physics on small meshes (they need the crate's
+//! internals: reactions, material points, tangents).
+
+use crate::effect::material_nonlinearity::{NeoHookean, uniaxial_nominal_stress};
+use crate::effect::{CompliantSupport, Effects, LayeredStiffness, OutOfPlane, TipCuttingForce};
+use crate::needle::{CONSISTENCY_TOLERANCE, insert};
+use crate::probe::press;
+use crate::scenario::{NeedlePlan, Scenario};
+use crate::system::Stiffness;
+use crate::world::World;
+use needle_fem::material::Materials;
+
+/// A small plane-strain null scenario: 6 x 6 markers, coarse mesh.
+fn small() -> Scenario {
+    let mut s = Scenario::quick();
+    s.phantom.markers = (6, 6);
+    s.resolution.refinement = 1;
+    s.resolution.depth_step = 0.005;
+    s.resolution.shaft_step = 0.002;
+    s.effects = Effects::none();
+    s.needles.depth = 0.03;
+    s.needles.first_line = 0.03;
+    s.needles.velocities = vec![0.003];
+    s
+}
+
+fn plan(s: &Scenario) -> NeedlePlan {
+    s.needles.plan()[0]
+}
+
+/// Sum of the y components of `r` over the nodes on the back face.
+fn back_reaction(world: &World, r: &[f64]) -> f64 {
+    let depth = world.scenario.phantom.depth;
+    world
+        .body
+        .nodes_where(|x| (x[1] - depth).abs() < 1e-12)
+        .iter()
+        .map(|&n| r[n * world.body.dim + 1])
+        .sum()
+}
+
+#[test]
+fn needle_load_is_balanced_by_the_fixed_face() {
+    for s in [
+        small(),
+        Scenario {
+            effects: Effects {
+                out_of_plane: Some(OutOfPlane),
+                ..Effects::none()
+            },
+            ..small()
+        },
+    ] {
+        let world = World::new(&s).unwrap();
+        let response = world.response(0.0, &[]).unwrap();
+        let run = insert(
+            &world,
+            &response,
+            &[plan(&s)],
+            s.needles.depth,
+            s.resolution.depth_step,
+        )
+        .unwrap();
+        let u = &run[0].last_displacement;
+        let r = response.internal_forces(&world.body, u);
+        let applied: f64 = *run[0].force.last().unwrap();
+        // Expected base force: density times the inserted length.
+        let inserted = s.needles.depth - run[0].entry.last().unwrap();
+        assert!(
+            (applied - s.shaft.density * inserted).abs() < 1e-12,
+            "{applied} vs {}",
+            s.shaft.density * inserted
+        );
+        // K u = f: the reactions on the held face balance the shaft force.
+        let reaction = back_reaction(&world, &r);
+        assert!(
+            (reaction + applied).abs() < 1e-9 * applied,
+            "reaction {reaction} vs applied {applied}"
+        );
+        // Off the held face, K u equals the applied load: its y sum is the force.
+        let total: f64 = (0..world.body.nodes.len())
+            .map(|n| r[n * world.body.dim + 1])
+            .sum();
+        assert!(total.abs() < 1e-9 * applied, "net force {total}");
+    }
+}
+
+#[test]
+fn needle_tip_is_solved_consistently() {
+    let s = small();
+    let world = World::new(&s).unwrap();
+    let response = world.response(0.0, &[]).unwrap();
+    let run = &insert(
+        &world,
+        &response,
+        &[plan(&s)],
+        s.needles.depth,
+        s.resolution.depth_step,
+    )
+    .unwrap()[0];
+    let x = run.tip_material;
+    let at = world.body.locate(x).unwrap();
+    let u = world.body.value(&at, &run.last_displacement);
+    let spatial = [x[0] + u[0], x[1] + u[1]];
+    assert!(
+        (spatial[0] - plan(&s).line).abs() < 10.0 * CONSISTENCY_TOLERANCE,
+        "{spatial:?}"
+    );
+    assert!(
+        (spatial[1] - s.needles.depth).abs() < 10.0 * CONSISTENCY_TOLERANCE,
+        "{spatial:?}"
+    );
+    // The tissue is dragged forwards: the material tip lies behind the
+    // spatial tip by a displacement far above the tolerance.
+    assert!(u[1] > 1e-4, "tip displacement {}", u[1]);
+}
+
+#[test]
+fn probe_force_balances_the_fixed_face_and_scales_linearly() {
+    let s = small();
+    let world = World::new(&s).unwrap();
+    let probe = s.probes[0];
+    let run = press(&world, &probe).unwrap();
+    let force = *run.force.last().unwrap();
+    assert!(force > 0.0);
+    let materials =
+        Materials::from_parameters(&[(s.phantom.youngs_modulus, s.phantom.poisson_ratio)]).unwrap();
+    let k = Stiffness::new(&world.body.stiffness(&materials).unwrap(), &[]).unwrap();
+    let r = k.multiply(&run.last_displacement);
+    assert!((back_reaction(&world, &r) + force).abs() < 1e-9 * force);
+    // Halving the indentation halves the force.
+    let half = press(
+        &world,
+        &crate::scenario::ProbeTrial {
+            indentation: probe.indentation / 2.0,
+            ..probe
+        },
+    )
+    .unwrap();
+    assert!((2.0 * half.force.last().unwrap() - force).abs() < 1e-9 * force);
+}
+
+#[test]
+fn neo_hookean_tangent_at_rest_is_the_linear_stiffness() {
+    for s in [
+        small(),
+        Scenario {
+            effects: Effects {
+                out_of_plane: Some(OutOfPlane),
+                ..Effects::none()
+            },
+            ..small()
+        },
+    ] {
+        let world = World::new(&s).unwrap();
+        let pairs = [(s.phantom.youngs_modulus, s.phantom.poisson_ratio)];
+        let linear = Stiffness::new(
+            &world
+                .body
+                .stiffness(&Materials::from_parameters(&pairs).unwrap())
+                .unwrap(),
+            &[],
+        )
+        .unwrap();
+        let neo = NeoHookean::new(&world.body, &pairs, &[], world.fixed.clone()).unwrap();
+        let tangent = neo
+            .tangent_at(&world.body, &vec![0.0; world.body.dof_count()])
+            .unwrap();
+        // Compare the two matrices through their action on a few vectors.
+        for seed in 0..3 {
+            let v: Vec<f64> = (0..world.body.dof_count())
+                .map(|i| ((i * 7919 + seed * 104729) % 1000) as f64 / 1000.0 - 0.5)
+                .collect();
+            let a = linear.multiply(&v);
+            let b = tangent.multiply(&v);
+            let scale = a.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            let diff = a
+                .iter()
+                .zip(&b)
+                .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+            assert!(
+                diff < 1e-9 * scale,
+                "dim {}: {diff} vs {scale}",
+                world.body.dim
+            );
+        }
+    }
+}
+
+#[test]
+fn neo_hookean_matches_linear_at_small_load_and_departs_at_large() {
+    let mut s = small();
+    s.effects.material_nonlinearity = Some(crate::effect::MaterialNonlinearity);
+    let world = World::new(&s).unwrap();
+    let linear_s = small();
+    let linear_world = World::new(&linear_s).unwrap();
+    for (indentation, close) in [(1e-5, true), (0.006, false)] {
+        let probe = crate::scenario::ProbeTrial {
+            indentation,
+            ..s.probes[0]
+        };
+        let a = *press(&world, &probe).unwrap().force.last().unwrap();
+        let b = *press(&linear_world, &probe).unwrap().force.last().unwrap();
+        let relative = (a - b).abs() / b;
+        if close {
+            assert!(
+                relative < 1e-3,
+                "small indentation: neo-Hookean {a} vs linear {b}"
+            );
+        } else {
+            assert!(
+                relative > 2e-2,
+                "large indentation: neo-Hookean {a} vs linear {b}"
+            );
+        }
+    }
+}
+
+#[test]
+fn uniaxial_neo_hookean_starts_with_slope_e() {
+    let e = 25_300.0;
+    let stress = uniaxial_nominal_stress(e, 0.48, 1.0 - 1e-5);
+    assert!((stress / 1e-5 - e).abs() < 1e-3 * e, "{}", stress / 1e-5);
+    // Compression stiffens relative to linear in nominal stress.
+    assert!(uniaxial_nominal_stress(e, 0.48, 0.7) > 0.3 * e);
+}
+
+#[test]
+fn out_of_plane_markers_move_less_than_the_mid_plane() {
+    let s = Scenario {
+        effects: Effects {
+            out_of_plane: Some(OutOfPlane),
+            ..Effects::none()
+        },
+        ..small()
+    };
+    let world = World::new(&s).unwrap();
+    let response = world.response(0.0, &[]).unwrap();
+    let run = &insert(
+        &world,
+        &response,
+        &[plan(&s)],
+        s.needles.depth,
+        s.resolution.depth_step,
+    )
+    .unwrap()[0];
+    let u = &run.last_displacement;
+    let line = plan(&s).line;
+    let mid = world
+        .body
+        .value(&world.body.locate([line, 0.02, 0.0]).unwrap(), u)[1];
+    let top = world.body.value(
+        &world
+            .body
+            .locate([line, 0.02, world.body.marker_z()])
+            .unwrap(),
+        u,
+    )[1];
+    assert!(top > 0.0 && top < 0.9 * mid, "top {top} mid {mid}");
+}
+
+#[test]
+fn compliant_support_lets_the_back_face_move() {
+    let mut s = small();
+    s.effects.compliant_support = Some(CompliantSupport {
+        normal: 1e6,
+        tangential: 1e6,
+    });
+    let world = World::new(&s).unwrap();
+    assert!(world.fixed.iter().all(|f| !f));
+    let response = world.response(0.0, &[]).unwrap();
+    let run = &insert(
+        &world,
+        &response,
+        &[plan(&s)],
+        s.needles.depth,
+        s.resolution.depth_step,
+    )
+    .unwrap()[0];
+    let back = world.body.value(
+        &world
+            .body
+            .locate([plan(&s).line, s.phantom.depth, 0.0])
+            .unwrap(),
+        &run.last_displacement,
+    )[1];
+    // Traction about F / (width t) over the face, divided by k.
+    let expected = run.force.last().unwrap() / (s.phantom.width * s.phantom.thickness) / 1e6;
+    assert!(
+        back > 0.2 * expected && back < 5.0 * expected,
+        "back face moves {back}, order {expected}"
+    );
+    // The springs carry the whole load.
+    let r = response.internal_forces(&world.body, &run.last_displacement);
+    let total: f64 = (0..world.body.nodes.len()).map(|n| r[n * 2 + 1]).sum();
+    assert!((total - run.force.last().unwrap()).abs() < 1e-9);
+}
+
+#[test]
+fn layered_phantom_assigns_regions_by_depth() {
+    let mut s = small();
+    s.effects.layered_stiffness = Some(LayeredStiffness {
+        boundaries: vec![0.03],
+        moduli: vec![20e3, 60e3],
+    });
+    let world = World::new(&s).unwrap();
+    assert_eq!(world.moduli(0.0), vec![20e3, 60e3]);
+    let regions = world.body.regions();
+    for e in 0..world.body.element_count() {
+        let y = world
+            .body
+            .element(e)
+            .iter()
+            .map(|&n| world.body.nodes[n][1])
+            .sum::<f64>()
+            / 6.0;
+        assert_eq!(regions[e], usize::from(y >= 0.03));
+    }
+}
+
+#[test]
+fn tip_peak_adds_force_near_the_tip_only() {
+    let mut s = small();
+    let plain = crate::shaft::ShaftLoad::of(&s, &plan(&s));
+    s.effects.tip_cutting_force = Some(TipCuttingForce {
+        amplitude: 1.0,
+        offset: 0.002,
+        width: 0.0015,
+    });
+    let peaked = crate::shaft::ShaftLoad::of(&s, &plan(&s));
+    assert!((peaked.at(0.002) - 2.0 * plain.at(0.002)).abs() < 1e-12);
+    assert!((peaked.at(0.02) - plain.at(0.02)).abs() < 1e-9);
+    let extra: f64 = peaked
+        .points(0.0, 0.03, 60)
+        .iter()
+        .map(|p| p.force)
+        .sum::<f64>()
+        - plain
+            .points(0.0, 0.03, 60)
+            .iter()
+            .map(|p| p.force)
+            .sum::<f64>();
+    // Integral of the bump: A q w sqrt(pi) (almost all of it behind the tip).
+    let expected = plain.density
+        * 0.0015
+        * std::f64::consts::PI.sqrt()
+        * 0.5
+        * (1.0 + libm_erf(0.002 / 0.0015));
+    assert!(
+        (extra - expected).abs() < 1e-3 * expected,
+        "{extra} vs {expected}"
+    );
+}
+
+/// erf by its series (enough terms for |x| < 3).
+fn libm_erf(x: f64) -> f64 {
+    let mut sum = 0.0;
+    let mut term = x;
+    for n in 0..60 {
+        sum += term / (2 * n + 1) as f64;
+        term *= -x * x / (n + 1) as f64;
+    }
+    2.0 / std::f64::consts::PI.sqrt() * sum
+}

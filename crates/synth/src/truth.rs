@@ -1,0 +1,66 @@
+//! The ground truth of a generated campaign: which effects are present and
+//! every true parameter value, written as RON beside (never inside) the
+//! bundle, for scoring a diagnosis.
+
+use serde::{Deserialize, Serialize};
+
+use crate::effect::EffectId;
+use crate::scenario::Scenario;
+
+/// Everything true about a generated campaign.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GroundTruth {
+    /// Bundle name.
+    pub bundle: String,
+    /// Effects present in the truth, in catalog order.
+    pub effects: Vec<EffectId>,
+    /// The scenario, with every true parameter.
+    pub scenario: Scenario,
+    /// The truth's discretisation.
+    pub discretisation: Discretisation,
+    /// Stated noise: marker sigma (m) and force sigma (N).
+    pub stated_noise: (f64, f64),
+    /// Per trial, the values that follow from the scenario.
+    pub trials: Vec<TrialTruth>,
+    /// The compression test's modulus, if the test was done.
+    pub compression_modulus: Option<f64>,
+}
+
+/// The truth's mesh.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Discretisation {
+    /// 2 (plane strain, 6-node triangles) or 3 (slab, 10-node tetrahedra).
+    pub dimension: usize,
+    /// Number of nodes.
+    pub nodes: usize,
+    /// Number of elements.
+    pub elements: usize,
+    /// Largest element edge in the plane (m).
+    pub element_size: f64,
+}
+
+/// True values of one trial.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrialTruth {
+    /// Trial id in the bundle.
+    pub id: String,
+    /// Day of the trial.
+    pub day: f64,
+    /// Young's modulus of each layer that day (Pa).
+    pub youngs_moduli: Vec<f64>,
+    /// Needle: insertion line x (m); probe: probe centre x (m).
+    pub x: f64,
+    /// Needle: shaft force density behind the tip peak (N/m).
+    pub shaft_density: Option<f64>,
+    /// Needle: spatial y of the entry point at the last state (m).
+    pub final_entry: Option<f64>,
+    /// Needle: material point of the tip at the last state (m).
+    pub final_tip_material: Option<[f64; 3]>,
+    /// True (noise-free) force at the tool base at the end (N).
+    pub final_force: f64,
+    /// Largest principal strain in the phantom at the end.
+    pub peak_strain: f64,
+}

@@ -1,0 +1,158 @@
+//! Scenario files: the stored fixtures agree with the built-in presets,
+//! and bad files give typed errors naming the file, line and field.
+
+use std::path::PathBuf;
+
+use needle_synth::{EffectId, Scenario, SynthError, load_scenario};
+
+fn fixture(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../fixtures/scenarios")
+        .join(format!("{name}.ron"))
+}
+
+#[test]
+fn stored_fixtures_equal_the_presets() {
+    let mut presets = vec![
+        Scenario::paper_default(),
+        Scenario::quick(),
+        Scenario::null(),
+        Scenario::two_effects(),
+    ];
+    presets.extend(EffectId::ALL.into_iter().map(Scenario::effect_alone));
+    for preset in presets {
+        let loaded =
+            load_scenario(fixture(&preset.name)).unwrap_or_else(|e| panic!("{}: {e}", preset.name));
+        assert_eq!(
+            loaded, preset,
+            "fixture {} differs from its preset",
+            preset.name
+        );
+    }
+}
+
+#[test]
+fn effect_alone_scenarios_hold_exactly_one_effect() {
+    for id in EffectId::ALL {
+        assert_eq!(Scenario::effect_alone(id).effects.present(), vec![id]);
+    }
+    assert!(Scenario::null().effects.present().is_empty());
+    assert_eq!(Scenario::two_effects().effects.present().len(), 2);
+    assert_eq!(
+        Scenario::paper_default().effects.present(),
+        vec![
+            EffectId::OutOfPlane,
+            EffectId::VelocityDependentFriction,
+            EffectId::TipCuttingForce,
+            EffectId::MaterialStiffening
+        ]
+    );
+}
+
+#[test]
+fn default_campaign_follows_the_paper() {
+    let s = Scenario::paper_default();
+    assert_eq!(
+        (s.phantom.width, s.phantom.depth, s.phantom.thickness),
+        (0.075, 0.075, 0.0075)
+    );
+    assert_eq!(
+        (
+            s.phantom.youngs_modulus,
+            s.phantom.poisson_ratio,
+            s.phantom.markers
+        ),
+        (25_300.0, 0.48, (21, 21))
+    );
+    assert!(s.probes.len() >= 4);
+    assert_eq!(
+        s.needles.velocities,
+        vec![0.001, 0.003, 0.005, 0.007, 0.009]
+    );
+    // Every insertion on its own line.
+    let lines: Vec<f64> = s.needles.plan().iter().map(|p| p.line).collect();
+    assert!(lines.windows(2).all(|w| w[1] - w[0] > 0.004), "{lines:?}");
+    let test = s.compression.unwrap();
+    assert_eq!((test.side, test.height), (0.03, 0.01));
+}
+
+fn write_temp(text: &str) -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("bad.ron");
+    std::fs::write(&path, text).unwrap();
+    (dir, path)
+}
+
+#[test]
+fn unknown_field_is_named_with_its_line() {
+    let text = Scenario::null().to_ron().replace(
+        "poisson_ratio: 0.48,",
+        "poisson_ratio: 0.48,\n        colour: 3,",
+    );
+    let (_dir, path) = write_temp(&text);
+    match load_scenario(&path) {
+        Err(SynthError::Parse {
+            path: p,
+            line,
+            message,
+            ..
+        }) => {
+            assert_eq!(p, path);
+            assert!(message.contains("colour"), "{message}");
+            let expected = text.lines().position(|l| l.contains("colour")).unwrap() + 1;
+            assert_eq!(line, expected);
+        }
+        other => panic!("expected a parse error, got {other:?}"),
+    }
+}
+
+#[test]
+fn missing_field_is_named() {
+    let text = Scenario::null()
+        .to_ron()
+        .replace("        seed: 2005,\n", "")
+        .replace("    seed: 2005,\n", "");
+    let (_dir, path) = write_temp(&text);
+    match load_scenario(&path) {
+        Err(SynthError::Parse { message, .. }) => assert!(message.contains("seed"), "{message}"),
+        other => panic!("expected a parse error, got {other:?}"),
+    }
+}
+
+#[test]
+fn out_of_range_value_names_the_dotted_field() {
+    let text = Scenario::null()
+        .to_ron()
+        .replace("poisson_ratio: 0.48", "poisson_ratio: 0.5");
+    let (_dir, path) = write_temp(&text);
+    match load_scenario(&path) {
+        Err(SynthError::InvalidField {
+            source_name, field, ..
+        }) => {
+            assert_eq!(field, "phantom.poisson_ratio");
+            assert!(source_name.contains("bad.ron"));
+        }
+        other => panic!("expected an invalid field, got {other:?}"),
+    }
+    let mut s = Scenario::null();
+    s.needles.line_spacing = 0.01;
+    let e = s.validate("memory").unwrap_err();
+    assert!(
+        matches!(e, SynthError::InvalidField { ref field, .. } if field == "needles.first_line"),
+        "{e}"
+    );
+    let mut s = Scenario::effect_alone(EffectId::LayeredStiffness);
+    s.effects.layered_stiffness.as_mut().unwrap().moduli.pop();
+    let e = s.validate("memory").unwrap_err();
+    assert!(
+        matches!(e, SynthError::InvalidField { ref field, .. } if field == "effects.layered_stiffness.moduli"),
+        "{e}"
+    );
+}
+
+#[test]
+fn missing_file_is_an_io_error_naming_it() {
+    let e = load_scenario("/nonexistent/scenario.ron").unwrap_err();
+    assert!(matches!(e, SynthError::Io { .. }));
+    assert!(e.to_string().contains("/nonexistent/scenario.ron"));
+}
