@@ -7,8 +7,10 @@
 //! - `cargo xtask pipeline`: the main job on the built-in default experiment.
 //! - `cargo xtask validate --bundle DIR`: check a measurement bundle.
 //! - `cargo xtask track ...`: track a trial's camera frames into `markers.csv`.
+//! - `cargo xtask diagnose --bundle DIR ...`: the diagnosis loop.
 
 mod bundle_commands;
+mod diagnose_command;
 mod output;
 mod pipeline;
 mod plot;
@@ -35,6 +37,8 @@ enum Command {
     Validate(bundle_commands::ValidateArgs),
     /// Track a trial's camera frames into a `markers.csv` of format 1.
     Track(bundle_commands::TrackArgs),
+    /// Fit a model to a bundle, find the missing effect, and show the error ladder.
+    Diagnose(diagnose_command::DiagnoseArgs),
 }
 
 fn main() -> ExitCode {
@@ -43,6 +47,7 @@ fn main() -> ExitCode {
         Command::Pipeline(args) => pipeline::run(&args),
         Command::Validate(args) => bundle_commands::validate(&args),
         Command::Track(args) => bundle_commands::track(&args),
+        Command::Diagnose(args) => diagnose_command::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

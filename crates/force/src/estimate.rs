@@ -112,6 +112,10 @@ pub struct ShaftEstimator {
     options: EstimatorOptions,
     grid: GridIndex,
     response: ShaftResponse,
+    /// The needle line the frames were fitted to, before the model snapped
+    /// it to a mesh line: frames are checked against this line, so that the
+    /// snap (at most a quarter element) does not reject frames the line fits.
+    line_entry_x: f64,
 }
 
 impl ShaftEstimator {
@@ -160,6 +164,7 @@ impl ShaftEstimator {
             options,
             grid,
             response,
+            line_entry_x: entry_x,
         })
     }
 
@@ -181,10 +186,12 @@ impl ShaftEstimator {
         let path = ShaftPath::from_frame(frame, &insertion.layout, &self.grid)?;
         let (entry, axis) = (self.response.entry(), self.response.axis());
         let turn = path.axis[0] * axis[1] - path.axis[1] * axis[0];
-        if (path.entry[0] - entry[0]).abs() > 0.25 * self.grid.spacing() || turn.abs() > 1e-3 {
+        if (path.entry[0] - self.line_entry_x).abs() > 0.25 * self.grid.spacing()
+            || turn.abs() > 1e-3
+        {
             return Err(ForceError::Mismatch(format!(
                 "frame at t = {} s: the needle enters at x = {} m with axis {:?}, off the model's needle line (x = {} m, axis {:?})",
-                frame.t, path.entry[0], path.axis, entry[0], axis
+                frame.t, path.entry[0], path.axis, self.line_entry_x, axis
             )));
         }
         if path.length > insertion.phantom.depth {

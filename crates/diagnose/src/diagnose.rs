@@ -1,0 +1,442 @@
+//! The diagnosis loop: fit, rank the missing effects, give a verdict, and
+//! on request add the recommended effect and go again (the error ladder).
+
+use std::path::Path;
+
+use needle_data::read_bundle;
+use serde::{Deserialize, Serialize};
+
+use crate::error::DiagnoseError;
+use crate::fit::{Context, Fit, Fitted, fit_model, misfit};
+use crate::forward::Forward;
+use crate::model::{Baseline, Model};
+use crate::observe::{Load, Observations};
+use crate::rank::{Candidate, Ranked, rank_candidates};
+use crate::spec::{DiagnoseOptions, ModelSpec};
+
+/// What the residuals say.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Verdict {
+    /// This catalog effect explains a significant part of the residual.
+    MissingEffect(String),
+    /// Every channel's chi-square per dof is consistent with 1 and no
+    /// candidate is significant.
+    ConsistentWithNoise,
+    /// Some channel misfits beyond the noise, yet no catalog effect
+    /// explains it significantly.
+    Unexplained,
+}
+
+/// Where the noise levels of the whitening came from.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum NoiseSource {
+    /// Stated in the bundle.
+    Stated,
+    /// Not stated: estimated from the first fit's residuals per channel, so
+    /// chi-square per dof of that fit is 1 by construction and only the
+    /// candidate tests carry information.
+    Estimated {
+        /// Estimated marker noise (m).
+        marker_sigma: f64,
+        /// Estimated force noise (N).
+        force_sigma: f64,
+    },
+}
+
+/// The machine-readable summary, `diagnosis.ron`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Diagnosis {
+    /// Bundle name.
+    pub bundle: String,
+    /// Effects in the model that was fitted.
+    pub model: Vec<String>,
+    /// The verdict.
+    pub verdict: Verdict,
+    /// Misfit of the fitted model.
+    pub fit: Fit,
+    /// Every catalog effect not in the model, best first.
+    pub candidates: Vec<Candidate>,
+    /// Where the noise levels came from.
+    pub noise: NoiseSource,
+    /// The p-value below which a candidate counts (significance / candidates).
+    pub threshold_p: f64,
+}
+
+/// One fitted parameter with its 95 % Wald interval (absent when it has no
+/// standard error: on a bound or unidentifiable).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FittedParameter {
+    /// Name.
+    pub name: String,
+    /// Fitted value.
+    pub value: f64,
+    /// Standard error.
+    pub standard_error: Option<f64>,
+    /// 95 % interval.
+    pub interval: Option<(f64, f64)>,
+    /// What it means.
+    pub meaning: String,
+}
+
+/// The fitted model, written as `model.ron`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FittedModel {
+    /// Bundle name.
+    pub bundle: String,
+    /// Effects of the model.
+    pub model: Vec<String>,
+    /// Its parameters.
+    pub parameters: Vec<FittedParameter>,
+    /// Its misfit.
+    pub fit: Fit,
+}
+
+/// One row of the error ladder.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LadderRow {
+    /// Step number, 0 for the model given.
+    pub step: usize,
+    /// Effect added at this step (none at step 0).
+    pub added: Option<String>,
+    /// Effects in the model.
+    pub model: Vec<String>,
+    /// Number of parameters.
+    pub parameters: usize,
+    /// Misfit.
+    pub fit: Fit,
+    /// Verdict at this step.
+    pub verdict: Verdict,
+}
+
+/// The error ladder: the misfit of the model given, then after each effect added.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct Ladder {
+    /// One row per step.
+    pub rows: Vec<LadderRow>,
+}
+
+/// A marker residual with everything it can be plotted against.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct MarkerResidual {
+    /// Trial index in the bundle's order of non-compression trials.
+    pub trial: usize,
+    /// Frame time (s).
+    pub t: f64,
+    /// Marker index in `markers_rest.csv` order.
+    pub marker: usize,
+    /// Rest position (m).
+    pub x: f64,
+    /// Rest position (m).
+    pub y: f64,
+    /// Model minus data, x (m).
+    pub rx: f64,
+    /// Model minus data, y (m).
+    pub ry: f64,
+    /// Trial velocity (m/s).
+    pub velocity: f64,
+    /// Trial day.
+    pub day: f64,
+    /// Inserted length of a needle, 0 otherwise (m).
+    pub tip_depth: f64,
+    /// Distance from the needle shaft or the probe tip (m).
+    pub distance_from_tool: f64,
+    /// Distance from the image centre (m).
+    pub radius: f64,
+}
+
+/// A needle force residual.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ForceResidual {
+    /// Trial index.
+    pub trial: usize,
+    /// Sample time (s).
+    pub t: f64,
+    /// Inserted length (m).
+    pub tip_depth: f64,
+    /// Trial velocity (m/s).
+    pub velocity: f64,
+    /// Trial day.
+    pub day: f64,
+    /// Model minus data (N).
+    pub rx: f64,
+    /// Model minus data (N).
+    pub ry: f64,
+}
+
+/// Everything a diagnosis produced.
+#[derive(Debug, Clone)]
+pub struct DiagnosisRun {
+    /// Summary of the final model (the model given, or the last one of the ladder).
+    pub diagnosis: Diagnosis,
+    /// Summaries of every step.
+    pub steps: Vec<Diagnosis>,
+    /// The error ladder.
+    pub ladder: Ladder,
+    /// The final fitted model.
+    pub fitted: FittedModel,
+    /// Marker residuals of the final model.
+    pub marker_residuals: Vec<MarkerResidual>,
+    /// Force residuals of the final model.
+    pub force_residuals: Vec<ForceResidual>,
+    /// Trial ids, indexed by the residuals' `trial`.
+    pub trial_ids: Vec<String>,
+}
+
+/// Diagnoses `model` on the bundle at `bundle_dir`.
+pub fn diagnose(
+    bundle_dir: &Path,
+    model: &ModelSpec,
+    options: &DiagnoseOptions,
+) -> Result<DiagnosisRun, DiagnoseError> {
+    options.validate()?;
+    model.effects()?;
+    let bundle = read_bundle(bundle_dir)?;
+    let campaign = &bundle.campaign;
+    // Relative weights until the noise is known.
+    let (marker_sigma, force_sigma) = campaign
+        .noise
+        .map_or((1.0e-5, 1.0e-2), |n| (n.marker_sigma, n.force_sigma));
+    let obs = Observations::from_campaign(campaign, options.probe_force_samples, force_sigma)?;
+    let forward = Forward::new(&campaign.phantom, &obs.rest, options.refinement)?;
+    let measured = obs.measured();
+    let marker_count = obs.marker_count();
+    let flat = |sm: f64, sf: f64| -> Vec<f64> {
+        (0..measured.len())
+            .map(|i| if i < marker_count { sm } else { sf })
+            .collect()
+    };
+    let mut context = Context {
+        sigma: flat(marker_sigma, force_sigma),
+        forward,
+        obs,
+        measured: measured.clone(),
+    };
+    let start = Baseline {
+        youngs_modulus: options.initial_youngs_modulus,
+        poisson_ratio: options.initial_poisson_ratio,
+        shaft_density: initial_shaft_density(&context.obs),
+    };
+    let mut current = Model::new(model, &context.forward.geometry, start)?;
+    // A first fit sets the weights: the probe force noise carried to the
+    // markers at these parameters, or the noise itself when not stated.
+    let first = fit_model(&context, &current, &[], &[])?;
+    let noise = match campaign.noise {
+        Some(_) => {
+            let prediction = context
+                .forward
+                .predict(&current, &first.params, &context.obs)?;
+            for (i, v) in prediction.force_variance.iter().enumerate() {
+                context.sigma[i] = (marker_sigma * marker_sigma + v).sqrt();
+            }
+            NoiseSource::Stated
+        }
+        None => {
+            let (fit, _, dof) = misfit(&context, &first.residuals, first.report.params.len());
+            let m = context.obs.marker_count() as f64;
+            let f = context.obs.force_count() as f64;
+            let estimate = |rms: f64, n: f64, dof: f64, fallback: f64| {
+                if n > 0.0 && rms > 0.0 {
+                    rms * (n / dof).sqrt()
+                } else {
+                    fallback
+                }
+            };
+            let sm = estimate(fit.rms_marker, m, dof[0], marker_sigma);
+            let sf = estimate(fit.rms_force, f, dof[1], force_sigma);
+            context.sigma = flat(sm, sf);
+            NoiseSource::Estimated {
+                marker_sigma: sm,
+                force_sigma: sf,
+            }
+        }
+    };
+    let mut fitted = fit_model(&context, &current, &first.params, &[])?;
+    let mut ladder = Ladder::default();
+    let mut steps = Vec::new();
+    let mut added: Option<String> = None;
+    loop {
+        let ranked = rank_candidates(&context, &current, &fitted)?;
+        let (verdict, threshold_p) = verdict(&ranked, &fitted, options);
+        let diagnosis = Diagnosis {
+            bundle: campaign.name.clone(),
+            model: current.spec.effects.clone(),
+            verdict: verdict.clone(),
+            fit: fitted.fit,
+            candidates: ranked.iter().map(|r| r.candidate.clone()).collect(),
+            noise: noise.clone(),
+            threshold_p,
+        };
+        ladder.rows.push(LadderRow {
+            step: steps.len(),
+            added: added.take(),
+            model: current.spec.effects.clone(),
+            parameters: current.len(),
+            fit: fitted.fit,
+            verdict: verdict.clone(),
+        });
+        steps.push(diagnosis);
+        let next = match &verdict {
+            Verdict::MissingEffect(id)
+                if options.add_recommended && steps.len() <= options.max_added =>
+            {
+                ranked.into_iter().find(|r| &r.candidate.effect == id)
+            }
+            _ => None,
+        };
+        let Some(Ranked {
+            spec,
+            fitted: refit,
+            ..
+        }) = next
+        else {
+            break;
+        };
+        added = spec.effects.last().cloned();
+        current = Model::new(
+            &spec,
+            &context.forward.geometry,
+            current.baseline(&refit.params),
+        )?;
+        fitted = refit;
+    }
+    let diagnosis = steps.last().cloned().expect("at least one step");
+    Ok(DiagnosisRun {
+        fitted: fitted_model(&campaign.name, &current, &fitted),
+        marker_residuals: marker_residuals(&context, &fitted),
+        force_residuals: force_residuals(&context, &fitted),
+        trial_ids: context.obs.trial_ids.clone(),
+        diagnosis,
+        steps,
+        ladder,
+    })
+}
+
+/// The least-squares shaft density from the needle force samples,
+/// $q = \sum |F| L / \sum L^2$ (1 N/m without needle data).
+fn initial_shaft_density(obs: &Observations) -> f64 {
+    let (mut num, mut den) = (0.0, 0.0);
+    for sample in &obs.forces {
+        if let Some(shaft) = sample.shaft {
+            num += (sample.measured[0] * shaft.direction[0]
+                + sample.measured[1] * shaft.direction[1])
+                * shaft.length;
+            den += shaft.length * shaft.length;
+        }
+    }
+    if den > 0.0 { num / den } else { 1.0 }
+}
+
+/// The verdict rules (see the crate documentation).
+fn verdict(ranked: &[Ranked], fitted: &Fitted, options: &DiagnoseOptions) -> (Verdict, f64) {
+    let threshold_p = options.significance / ranked.len().max(1) as f64;
+    let leader = ranked
+        .iter()
+        .filter(|r| r.candidate.likelihood_ratio_p < threshold_p)
+        .max_by(|a, b| {
+            a.candidate
+                .likelihood_ratio
+                .total_cmp(&b.candidate.likelihood_ratio)
+        });
+    if let Some(leader) = leader {
+        return (
+            Verdict::MissingEffect(leader.candidate.effect.clone()),
+            threshold_p,
+        );
+    }
+    let consistent = |chi2: f64, dof: f64| {
+        !chi2.is_finite() || chi2 <= 1.0 + options.chi2_spread * (2.0 / dof).sqrt()
+    };
+    if consistent(fitted.fit.chi2_marker, fitted.dof[0])
+        && consistent(fitted.fit.chi2_force, fitted.dof[1])
+    {
+        (Verdict::ConsistentWithNoise, threshold_p)
+    } else {
+        (Verdict::Unexplained, threshold_p)
+    }
+}
+
+fn fitted_model(bundle: &str, model: &Model, fitted: &Fitted) -> FittedModel {
+    FittedModel {
+        bundle: bundle.to_string(),
+        model: model.spec.effects.clone(),
+        parameters: model
+            .parameters
+            .iter()
+            .enumerate()
+            .map(|(k, spec)| FittedParameter {
+                name: spec.name.clone(),
+                value: fitted.params[k],
+                standard_error: fitted.report.standard_error(k),
+                interval: fitted.report.confidence_interval(k, 0.95).ok(),
+                meaning: spec.meaning.to_string(),
+            })
+            .collect(),
+        fit: fitted.fit,
+    }
+}
+
+fn marker_residuals(context: &Context, fitted: &Fitted) -> Vec<MarkerResidual> {
+    let obs = &context.obs;
+    let geometry = &context.forward.geometry;
+    let mut out = Vec::new();
+    let mut slot = 0;
+    for frame in &obs.frames {
+        let trial = &obs.trials[frame.trial];
+        for &(m, _) in &frame.markers {
+            let [x, y] = obs.rest[m];
+            let (tip_depth, distance_from_tool) = match frame.load {
+                Load::Free => (0.0, f64::NAN),
+                Load::Probe { tip, .. } => {
+                    (0.0, ((x - tip[0]).powi(2) + (y - tip[1]).powi(2)).sqrt())
+                }
+                Load::Needle(shaft) => {
+                    let (dx, dy) = (x - shaft.entry[0], y - shaft.entry[1]);
+                    let along = (dx * shaft.direction[0] + dy * shaft.direction[1])
+                        .clamp(0.0, shaft.length);
+                    let px = shaft.entry[0] + along * shaft.direction[0];
+                    let py = shaft.entry[1] + along * shaft.direction[1];
+                    (shaft.length, ((x - px).powi(2) + (y - py).powi(2)).sqrt())
+                }
+            };
+            out.push(MarkerResidual {
+                trial: frame.trial,
+                t: frame.t,
+                marker: m,
+                x,
+                y,
+                rx: fitted.residuals[slot],
+                ry: fitted.residuals[slot + 1],
+                velocity: trial.velocity,
+                day: trial.day,
+                tip_depth,
+                distance_from_tool,
+                radius: ((x - geometry.image_centre[0]).powi(2)
+                    + (y - geometry.image_centre[1]).powi(2))
+                .sqrt(),
+            });
+            slot += 2;
+        }
+    }
+    out
+}
+
+fn force_residuals(context: &Context, fitted: &Fitted) -> Vec<ForceResidual> {
+    let obs = &context.obs;
+    let offset = obs.marker_count();
+    obs.forces
+        .iter()
+        .enumerate()
+        .map(|(k, sample)| {
+            let trial = &obs.trials[sample.trial];
+            ForceResidual {
+                trial: sample.trial,
+                t: sample.t,
+                tip_depth: sample.shaft.map_or(0.0, |s| s.length),
+                velocity: trial.velocity,
+                day: trial.day,
+                rx: fitted.residuals[offset + 2 * k],
+                ry: fitted.residuals[offset + 2 * k + 1],
+            }
+        })
+        .collect()
+}

@@ -1,0 +1,208 @@
+//! Physical effects: the open catalog of what the baseline model may miss.
+//!
+//! An effect adds named parameters to the model and changes one part of the
+//! forward model through one of the hooks of [`Effect`] (all default to "no
+//! change"): the material field ([`Effect::stiffness_factor`]), the supports
+//! ([`Effect::supports`]), the needle load ([`Effect::shaft_density`]) or the
+//! measurement map ([`Effect::measured_position`]). Every effect has *null*
+//! parameter values at which it changes nothing: the score test of
+//! [`crate::rank`] evaluates the gradient there.
+//!
+//! To add an effect: write one file in this folder implementing [`Effect`]
+//! and add one line to [`CATALOG`] (see `docs/adding-an-effect.md`).
+
+mod compliant_support;
+mod layered_stiffness;
+mod lens_distortion;
+mod material_stiffening;
+mod platform_friction;
+mod tip_cutting_force;
+mod velocity_dependent_friction;
+
+use needle_data::TrialKind;
+
+/// The catalog: one constructor per effect, in the order they are listed.
+pub const CATALOG: &[fn() -> Box<dyn Effect>] = &[
+    || Box::new(tip_cutting_force::TipCuttingForce),
+    || Box::new(velocity_dependent_friction::VelocityDependentFriction),
+    || Box::new(material_stiffening::MaterialStiffening),
+    || Box::new(compliant_support::CompliantSupport),
+    || Box::new(platform_friction::PlatformFriction),
+    || Box::new(lens_distortion::LensDistortion),
+    || Box::new(layered_stiffness::LayeredStiffness),
+];
+
+/// Every effect of the catalog.
+pub fn catalog() -> Vec<Box<dyn Effect>> {
+    CATALOG.iter().map(|make| make()).collect()
+}
+
+/// The effect with this id, if the catalog has it.
+pub fn lookup(id: &str) -> Option<Box<dyn Effect>> {
+    catalog().into_iter().find(|effect| effect.id() == id)
+}
+
+/// The phantom as the effects see it (m).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Geometry {
+    /// Extent along x.
+    pub width: f64,
+    /// Extent along y (insertion direction).
+    pub depth: f64,
+    /// Extent along z.
+    pub thickness: f64,
+    /// Centre of the marker field, the assumed image centre.
+    pub image_centre: [f64; 2],
+    /// Largest distance of a marker from `image_centre`.
+    pub image_radius: f64,
+}
+
+/// What an effect may know about a trial.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrialContext {
+    /// Probe, needle or compression.
+    pub kind: TrialKind,
+    /// Commanded tool speed (m/s).
+    pub velocity: f64,
+    /// Days since casting.
+    pub day: f64,
+}
+
+/// The supports of the slab that effects may change. The baseline holds the
+/// manifest's fixed faces rigidly and has no foundation.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct SupportSpec {
+    /// Compliance of the fixed faces per unit area (m³/N): 0 is rigid
+    /// (Dirichlet), a positive value replaces the constraint by springs of
+    /// stiffness `1 / compliance` in both directions.
+    pub fixed_face_compliance: f64,
+    /// Foundation stiffness over the plane (N/m³), both directions.
+    pub foundation: f64,
+}
+
+/// One parameter an effect adds.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EffectParameter {
+    /// Name, unique in a model (prefix it with something of the effect).
+    pub name: String,
+    /// Value at which the effect changes nothing.
+    pub null: f64,
+    /// Where a fit with the effect starts.
+    pub initial: f64,
+    /// Typical magnitude (finite-difference steps, units of the search).
+    pub scale: f64,
+    /// Lower bound.
+    pub lower: Option<f64>,
+    /// Upper bound.
+    pub upper: Option<f64>,
+    /// Whether the score test tests it. A shape parameter that matters only
+    /// when another parameter is off its null (the width of a peak whose
+    /// amplitude is zero) is held at `initial` in the score test instead.
+    pub tested: bool,
+    /// What it means, with its unit.
+    pub meaning: &'static str,
+}
+
+/// Where a point of the shaft is: arclength from the entry point and the
+/// inserted length (m).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ShaftPoint {
+    /// Arclength from the entry point, `0 <= s <= length`.
+    pub s: f64,
+    /// Inserted length (entry point to tip).
+    pub length: f64,
+}
+
+/// A physical effect the model may include. Parameters arrive as the slice
+/// of this effect's own values, in the order of [`Effect::parameters`].
+pub trait Effect: Send + Sync {
+    /// Stable id used in model files, on the command line and in reports.
+    fn id(&self) -> &'static str;
+
+    /// The physics the effect stands for.
+    fn physics(&self) -> &'static str;
+
+    /// What its absence does to the residuals.
+    fn signature(&self) -> &'static str;
+
+    /// The parameters it adds.
+    fn parameters(&self, geometry: &Geometry) -> Vec<EffectParameter>;
+
+    /// Factor multiplying the baseline Young's modulus of the element with
+    /// centroid `centroid`, element extent in y `[y_min, y_max]`, in `trial`.
+    fn stiffness_factor(
+        &self,
+        parameters: &[f64],
+        trial: &TrialContext,
+        centroid: [f64; 2],
+        y_extent: [f64; 2],
+    ) -> f64 {
+        let _ = (parameters, trial, centroid, y_extent);
+        1.0
+    }
+
+    /// Changes the supports.
+    fn supports(&self, parameters: &[f64], supports: &mut SupportSpec) {
+        let _ = (parameters, supports);
+    }
+
+    /// Shaft force density (N/m) added to the baseline's uniform density
+    /// at a point of the needle, along the needle axis.
+    fn shaft_density(&self, parameters: &[f64], trial: &TrialContext, point: ShaftPoint) -> f64 {
+        let _ = (parameters, trial, point);
+        0.0
+    }
+
+    /// Arclengths where [`Effect::shaft_density`] kinks or jumps, for
+    /// quadrature.
+    fn shaft_breakpoints(&self, parameters: &[f64], length: f64) -> Vec<f64> {
+        let _ = (parameters, length);
+        Vec::new()
+    }
+
+    /// Maps a true marker position on the top face to what the measurement
+    /// reports (e.g. through an uncalibrated lens).
+    fn measured_position(
+        &self,
+        parameters: &[f64],
+        geometry: &Geometry,
+        position: [f64; 2],
+    ) -> [f64; 2] {
+        let _ = (parameters, geometry);
+        position
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn catalog_ids_are_unique_and_parameters_valid() {
+        let geometry = Geometry {
+            width: 0.075,
+            depth: 0.075,
+            thickness: 0.0075,
+            image_centre: [0.0375, 0.0375],
+            image_radius: 0.04,
+        };
+        let effects = catalog();
+        for (i, a) in effects.iter().enumerate() {
+            for b in &effects[i + 1..] {
+                assert_ne!(a.id(), b.id());
+            }
+            let parameters = a.parameters(&geometry);
+            assert!(!parameters.is_empty(), "{}", a.id());
+            assert!(parameters.iter().any(|p| p.tested), "{}", a.id());
+            for p in &parameters {
+                assert!(p.scale > 0.0);
+                for v in [p.null, p.initial] {
+                    assert!(p.lower.is_none_or(|l| v >= l), "{} {}", a.id(), p.name);
+                    assert!(p.upper.is_none_or(|u| v <= u), "{} {}", a.id(), p.name);
+                }
+            }
+            assert_eq!(lookup(a.id()).map(|e| e.id()), Some(a.id()));
+        }
+        assert!(lookup("no_such_effect").is_none());
+    }
+}

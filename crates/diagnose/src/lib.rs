@@ -1,0 +1,105 @@
+//! # needle-diagnose: compare the model with the measurements, see where it
+//! fails, learn which physical effect is missing, add it, watch the error fall
+//!
+//! Given a measurement bundle and a model (the paper's baseline plus a list
+//! of effects), [`diagnose`] fits the model to all trials jointly, reports
+//! the misfit per channel, ranks every catalog effect not in the model by
+//! how much of the residual it explains, gives a [`Verdict`], and on request
+//! adds the recommended effect and refits, building the error [`Ladder`].
+//! [`write_outputs`] writes `diagnosis.ron`, `ladder.csv`, the fitted
+//! `model.ron` and the residual tables.
+//!
+//! ## Where it sits
+//!
+//! `needle-data` (bundles), `needle-fem` (meshes, assembly, Cholesky,
+//! loads, supports) and `needle-lsq` (the Levenberg-Marquardt engine)
+//! -> **needle-diagnose** -> `xtask diagnose`.
+//!
+//! ## The forward model
+//!
+//! The baseline is the paper's: a homogeneous linear elastic plane-strain
+//! T6 model of the top face with a node on every marker, the manifest's
+//! fixed faces held rigidly. A probe trial loads it with the measured tool
+//! force at the tip; a needle trial with a uniform shaft density $q$ along
+//! the inserted needle, whose integral is the predicted base force.
+//! Parameters: $E$, $\nu$, $q$. Every [`effect::Effect`] adds parameters
+//! and changes one part: the modulus field, the supports, the shaft
+//! density, or the measurement map (see [`effect`] and
+//! `docs/adding-an-effect.md`). Details in the `forward` module.
+//!
+//! ## The statistics
+//!
+//! Residuals are whitened by the stated noise (marker $\sigma_m$, force
+//! $\sigma_F$; the probe force noise, averaged over the nearest samples, is
+//! carried to the markers through the unit responses). If the bundle states
+//! no noise, each channel's $\sigma$ is estimated from the first fit,
+//! $\hat\sigma^2 = \sum r^2 / \text{dof}$, and the result says so
+//! ([`NoiseSource::Estimated`]).
+//!
+//! - **Chi-square per dof** of a channel $c$ with $n_c$ residuals:
+//!   $\chi^2_c / \nu_c$, $\nu_c = n_c - p\, n_c / n$ (the $p$ fitted
+//!   parameters charged in proportion). Under a correct model it is 1 with
+//!   sampling standard deviation $\sqrt{2/\nu_c}$.
+//! - **Score test** of a candidate effect at the current fit: the gradient
+//!   of the cost with respect to the effect's parameters at their null
+//!   values, $U = J_\psi^T r$, against the efficient Fisher information
+//!   $I = J_\psi^T (1 - P_\theta) J_\psi$; $S = U^T I^{-1} U \sim \chi^2_k$
+//!   (see `rank`).
+//! - **Refit**: the model with the effect added; likelihood ratio
+//!   $\Lambda = \chi^2_\text{now} - \chi^2_\text{with} \sim \chi^2_{k'}$,
+//!   AIC and BIC.
+//!
+//! ## The verdict
+//!
+//! With $N$ candidates and family-wise level $\alpha$ (default 0.01), a
+//! candidate is significant when its likelihood-ratio p-value is below
+//! $\alpha/N$ (Bonferroni), so the chance of naming any effect on data the
+//! model explains is at most $\alpha$.
+//!
+//! - `MissingEffect(id)`: the significant candidate with the largest
+//!   $\Lambda$ (the one that explains most of the residual).
+//! - `ConsistentWithNoise`: no candidate significant, and every channel has
+//!   $\chi^2/\nu \le 1 + z\sqrt{2/\nu}$ ($z$ = `chi2_spread`, default 3).
+//! - `Unexplained`: no candidate significant but some channel misfits
+//!   beyond that: structured residual that no catalog effect explains (see
+//!   the residual tables).
+//!
+//! ## What it does not do
+//!
+//! No 3-D slab (`out_of_plane`) and no hyperelastic material
+//! (`material_nonlinearity`) yet; compression trials are ignored; the
+//! needle's bending moment and lateral forces are not modelled; the probe
+//! force is taken as measured (its noise only widens the marker weights);
+//! no plots (the residual tables are written for the report to plot).
+//!
+//! **Known limitation.** The probe force noise moves all markers of a frame
+//! together (along the unit response), but the weights treat it as
+//! independent per coordinate. Effects that rescale trials
+//! (`material_stiffening`, `velocity_dependent_friction`) can absorb that
+//! correlated error, so after the right effect is added they may come out
+//! spuriously significant (likelihood ratio 15-20 on the test bundles).
+//! The cure is to whiten each probe frame with its full covariance
+//! $\sigma_m^2 I + \sigma_F^2 G G^T$ (a rank-2 update, Woodbury).
+
+mod chi2;
+mod diagnose;
+pub mod effect;
+mod error;
+mod fit;
+mod forward;
+mod model;
+mod observe;
+mod rank;
+mod spec;
+mod write;
+
+pub use chi2::{chi2_upper_quantile, chi2_upper_tail};
+pub use diagnose::{
+    Diagnosis, DiagnosisRun, FittedModel, FittedParameter, ForceResidual, Ladder, LadderRow,
+    MarkerResidual, NoiseSource, Verdict, diagnose,
+};
+pub use error::DiagnoseError;
+pub use fit::Fit;
+pub use rank::Candidate;
+pub use spec::{DiagnoseOptions, ModelSpec};
+pub use write::write_outputs;

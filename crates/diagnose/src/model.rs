@@ -1,0 +1,137 @@
+//! A model instance: the baseline parameters followed by each effect's, and
+//! the split of a parameter vector into them.
+
+use needle_lsq::Parameter;
+
+use crate::effect::{Effect, EffectParameter, Geometry};
+use crate::error::DiagnoseError;
+use crate::spec::ModelSpec;
+
+/// Number of baseline parameters: E, nu, shaft density.
+pub(crate) const BASELINE_PARAMETERS: usize = 3;
+
+/// The baseline parameters of a parameter vector.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Baseline {
+    pub youngs_modulus: f64,
+    pub poisson_ratio: f64,
+    pub shaft_density: f64,
+}
+
+/// The baseline plus effects, with the layout of its parameter vector.
+pub(crate) struct Model {
+    pub spec: ModelSpec,
+    pub effects: Vec<Box<dyn Effect>>,
+    pub parameters: Vec<EffectParameter>,
+    /// `offsets[k]..offsets[k + 1]` are the parameters of effect `k`.
+    offsets: Vec<usize>,
+}
+
+impl Model {
+    pub fn new(
+        spec: &ModelSpec,
+        geometry: &Geometry,
+        start: Baseline,
+    ) -> Result<Self, DiagnoseError> {
+        let effects = spec.effects()?;
+        let mut parameters = vec![
+            EffectParameter {
+                name: "youngs_modulus".into(),
+                null: start.youngs_modulus,
+                initial: start.youngs_modulus,
+                scale: start.youngs_modulus,
+                lower: Some(1.0e-3 * start.youngs_modulus),
+                upper: Some(1.0e3 * start.youngs_modulus),
+                tested: false,
+                meaning: "Young's modulus of the phantom (Pa)",
+            },
+            EffectParameter {
+                name: "poisson_ratio".into(),
+                null: start.poisson_ratio,
+                initial: start.poisson_ratio,
+                scale: 0.05,
+                lower: Some(0.05),
+                upper: Some(0.499),
+                tested: false,
+                meaning: "Poisson's ratio of the phantom",
+            },
+            EffectParameter {
+                name: "shaft_density".into(),
+                null: start.shaft_density,
+                initial: start.shaft_density,
+                scale: start.shaft_density.abs().max(1.0),
+                lower: None,
+                upper: None,
+                tested: false,
+                meaning: "uniform shaft force density along the inserted needle (N/m)",
+            },
+        ];
+        let mut offsets = vec![BASELINE_PARAMETERS];
+        for effect in &effects {
+            let own = effect.parameters(geometry);
+            for p in &own {
+                if parameters.iter().any(|q| q.name == p.name) {
+                    return Err(DiagnoseError::DuplicateEffect(format!(
+                        "{} (parameter `{}` already in the model)",
+                        effect.id(),
+                        p.name
+                    )));
+                }
+            }
+            parameters.extend(own);
+            offsets.push(parameters.len());
+        }
+        Ok(Self {
+            spec: spec.clone(),
+            effects,
+            parameters,
+            offsets,
+        })
+    }
+
+    pub fn len(&self) -> usize {
+        self.parameters.len()
+    }
+
+    pub fn baseline(&self, p: &[f64]) -> Baseline {
+        Baseline {
+            youngs_modulus: p[0],
+            poisson_ratio: p[1],
+            shaft_density: p[2],
+        }
+    }
+
+    /// The effects with their own parameter slices.
+    pub fn effects_with<'a>(
+        &'a self,
+        p: &'a [f64],
+    ) -> impl Iterator<Item = (&'a dyn Effect, &'a [f64])> + 'a {
+        self.effects
+            .iter()
+            .enumerate()
+            .map(move |(k, e)| (e.as_ref(), &p[self.offsets[k]..self.offsets[k + 1]]))
+    }
+
+    /// Parameter specifications for the engine, starting at `start` where
+    /// given (else each parameter's `initial`), with `fixed[k]` held.
+    pub fn lsq_parameters(&self, start: &[f64], fixed: &[bool]) -> Vec<Parameter> {
+        self.parameters
+            .iter()
+            .enumerate()
+            .map(|(k, spec)| {
+                let initial = start.get(k).copied().unwrap_or(spec.initial);
+                let mut p = Parameter::new(spec.name.clone(), initial).with_scale(spec.scale);
+                if let Some(lower) = spec.lower {
+                    p = p.with_lower(lower);
+                }
+                if let Some(upper) = spec.upper {
+                    p = p.with_upper(upper);
+                }
+                if fixed.get(k).copied().unwrap_or(false) {
+                    p = p.fix();
+                }
+                p
+            })
+            .collect()
+    }
+}

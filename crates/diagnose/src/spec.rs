@@ -1,0 +1,157 @@
+//! What to diagnose: the model (a list of effect ids) and the options.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::effect::{Effect, catalog, lookup};
+use crate::error::DiagnoseError;
+
+/// A model: the baseline plus a list of effects by id. Stored as a RON list,
+/// e.g. `["tip_cutting_force", "material_stiffening"]`.
+#[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(transparent)]
+pub struct ModelSpec {
+    /// Effect ids, in the order their parameters are appended.
+    pub effects: Vec<String>,
+}
+
+impl ModelSpec {
+    /// The paper's baseline: no effect.
+    pub fn baseline() -> Self {
+        Self::default()
+    }
+
+    /// A model from effect ids (checked against the catalog).
+    pub fn from_ids<S: AsRef<str>>(ids: &[S]) -> Result<Self, DiagnoseError> {
+        let spec = Self {
+            effects: ids.iter().map(|s| s.as_ref().to_string()).collect(),
+        };
+        spec.effects()?;
+        Ok(spec)
+    }
+
+    /// Reads a model file (a RON list of ids).
+    pub fn read(path: &Path) -> Result<Self, DiagnoseError> {
+        let text = std::fs::read_to_string(path).map_err(|source| DiagnoseError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let spec: Self = ron::from_str(&text).map_err(|e| DiagnoseError::ModelFile {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
+        spec.effects()?;
+        Ok(spec)
+    }
+
+    /// The same model with one more effect.
+    pub fn with(&self, id: &str) -> Self {
+        let mut effects = self.effects.clone();
+        effects.push(id.to_string());
+        Self { effects }
+    }
+
+    /// The effect objects, or an error naming an unknown or repeated id.
+    pub fn effects(&self) -> Result<Vec<Box<dyn Effect>>, DiagnoseError> {
+        let mut out: Vec<Box<dyn Effect>> = Vec::new();
+        for id in &self.effects {
+            if out.iter().any(|e| e.id() == id) {
+                return Err(DiagnoseError::DuplicateEffect(id.clone()));
+            }
+            let effect = lookup(id).ok_or_else(|| DiagnoseError::UnknownEffect {
+                id: id.clone(),
+                known: catalog()
+                    .iter()
+                    .map(|e| e.id())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            })?;
+            out.push(effect);
+        }
+        Ok(out)
+    }
+}
+
+/// Options of [`crate::diagnose`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DiagnoseOptions {
+    /// Family-wise false-alarm rate of the verdict: an effect is named only
+    /// if its likelihood-ratio p-value is below `significance / candidates`
+    /// (Bonferroni).
+    pub significance: f64,
+    /// A channel's chi-square per dof is consistent with 1 when within this
+    /// many sampling standard deviations `sqrt(2/dof)`.
+    pub chi2_spread: f64,
+    /// The model mesh has elements of at most (marker spacing) / `refinement`.
+    pub refinement: usize,
+    /// Number of force samples nearest in time averaged into a probe
+    /// trial's force at a camera frame.
+    pub probe_force_samples: usize,
+    /// Add the recommended effect and refit until the verdict is not
+    /// `MissingEffect`, building the error ladder.
+    pub add_recommended: bool,
+    /// At most this many effects are added by `add_recommended`.
+    pub max_added: usize,
+    /// Starting Young's modulus (Pa).
+    pub initial_youngs_modulus: f64,
+    /// Starting Poisson ratio.
+    pub initial_poisson_ratio: f64,
+}
+
+impl Default for DiagnoseOptions {
+    fn default() -> Self {
+        Self {
+            significance: 0.01,
+            chi2_spread: 3.0,
+            refinement: 3,
+            probe_force_samples: 9,
+            add_recommended: false,
+            max_added: 4,
+            initial_youngs_modulus: 25.0e3,
+            initial_poisson_ratio: 0.45,
+        }
+    }
+}
+
+impl DiagnoseOptions {
+    pub(crate) fn validate(&self) -> Result<(), DiagnoseError> {
+        let bad = |field: &'static str, reason: String| {
+            Err(DiagnoseError::InvalidOption { field, reason })
+        };
+        if !(self.significance > 0.0 && self.significance < 1.0) {
+            return bad(
+                "significance",
+                format!("{} must be in (0, 1)", self.significance),
+            );
+        }
+        if !(self.chi2_spread.is_finite() && self.chi2_spread > 0.0) {
+            return bad(
+                "chi2_spread",
+                format!("{} must be positive", self.chi2_spread),
+            );
+        }
+        if self.refinement == 0 || self.refinement > 16 {
+            return bad(
+                "refinement",
+                format!("{} must be in 1..=16", self.refinement),
+            );
+        }
+        if self.probe_force_samples == 0 {
+            return bad("probe_force_samples", "must be at least 1".into());
+        }
+        if !(self.initial_youngs_modulus.is_finite() && self.initial_youngs_modulus > 0.0) {
+            return bad(
+                "initial_youngs_modulus",
+                format!("{} must be positive", self.initial_youngs_modulus),
+            );
+        }
+        if !(self.initial_poisson_ratio > 0.0 && self.initial_poisson_ratio < 0.5) {
+            return bad(
+                "initial_poisson_ratio",
+                format!("{} must be in (0, 0.5)", self.initial_poisson_ratio),
+            );
+        }
+        Ok(())
+    }
+}
