@@ -113,6 +113,8 @@ pub use error::FemError;
 pub use load::LineDensity;
 pub use locate::{Location, Locator};
 pub use material::{Constitutive, Formulation, Material, Materials, Parameter};
-pub use mesh::{BoundaryFacet, Face, MarkerGrid, Mesh, Mesh2, Mesh3, RectangleMesh, SlabMesh};
+pub use mesh::{
+    BoundaryFacet, Face, MarkerGrid, Mesh, Mesh2, Mesh3, QualityReport, RectangleMesh, SlabMesh,
+};
 pub use solve::{LinearProblem, Solution};
 pub use support::Support;

@@ -573,3 +573,81 @@ fn node_and_facet_queries() {
         2 * (2 * 3 * 2 + 2 * 3 * 2 + 2 * 2 * 2)
     );
 }
+
+#[test]
+fn element_quality_is_one_for_regular_simplices_and_falls_as_they_flatten() {
+    let height = 3f64.sqrt() / 2.0;
+    let equilateral = Mesh::new(
+        ElementKind::Tri3,
+        vec![[0.0, 0.0], [1.0, 0.0], [0.5, height]],
+        vec![0, 1, 2],
+        vec![0],
+    )
+    .unwrap();
+    assert!((equilateral.element_quality(0) - 1.0).abs() < 1e-12);
+    let flattened = Mesh::new(
+        ElementKind::Tri3,
+        vec![[0.0, 0.0], [1.0, 0.0], [0.5, 0.01 * height]],
+        vec![0, 1, 2],
+        vec![0],
+    )
+    .unwrap();
+    let q = flattened.element_quality(0);
+    assert!(
+        q > 0.0 && q < 0.02,
+        "quality of a nearly flat triangle: {q}"
+    );
+
+    let s = 1.0 / 2f64.sqrt();
+    let regular_tet = Mesh::new(
+        ElementKind::Tet4,
+        vec![
+            [1.0, 0.0, -s],
+            [-1.0, 0.0, -s],
+            [0.0, 1.0, s],
+            [0.0, -1.0, s],
+        ],
+        vec![0, 1, 3, 2],
+        vec![0],
+    )
+    .unwrap();
+    assert!((regular_tet.element_quality(0) - 1.0).abs() < 1e-12);
+
+    // The structured meshes are made of right isosceles triangles,
+    // q = 4 sqrt(3) (1/2) / 4 = sqrt(3)/2, and are reported as such.
+    let rectangle = needle_fem::RectangleMesh::uniform(1.0, 1.0, 4, 4)
+        .unwrap()
+        .build(ElementKind::Tri6)
+        .unwrap();
+    let report = rectangle.quality(0.1);
+    assert!((report.worst - 3f64.sqrt() / 2.0).abs() < 1e-12);
+    assert!((report.mean - report.worst).abs() < 1e-12);
+    assert!(report.below_threshold.is_empty());
+}
+
+proptest! {
+    #[test]
+    fn element_quality_is_scale_and_rotation_invariant_and_in_unit_interval(
+        seed in 0u64..1000, scale in 0.001f64..1000.0, angle in 0.0f64..6.3,
+    ) {
+        let mesh = distorted_square(ElementKind::Tri3, 3, 0.3, seed);
+        let (c, s) = (angle.cos(), angle.sin());
+        let moved: Vec<[f64; 2]> = mesh
+            .nodes()
+            .iter()
+            .map(|p| [scale * (c * p[0] - s * p[1]), scale * (s * p[0] + c * p[1])])
+            .collect();
+        let transformed = Mesh::new(
+            ElementKind::Tri3,
+            moved,
+            mesh.connectivity().to_vec(),
+            mesh.regions().to_vec(),
+        )
+        .unwrap();
+        for e in 0..mesh.element_count() {
+            let q = mesh.element_quality(e);
+            prop_assert!(q > 0.0 && q <= 1.0 + 1e-12);
+            prop_assert!((q - transformed.element_quality(e)).abs() < 1e-9);
+        }
+    }
+}

@@ -6,6 +6,7 @@
 //! node: node `n` owns dofs `D*n .. D*n + D` in the order $(u_x, u_y[, u_z])$.
 
 pub mod quadratic;
+pub mod quality;
 pub mod query;
 pub mod rectangle;
 pub mod slab;
@@ -16,6 +17,7 @@ use crate::element::ElementKind;
 use crate::element::stiffness::{ReferenceGradients, physical_gradients};
 use crate::error::FemError;
 
+pub use quality::QualityReport;
 pub use query::{BoundaryFacet, Face};
 pub use rectangle::{MarkerGrid, RectangleMesh};
 pub use slab::SlabMesh;
