@@ -550,8 +550,9 @@ mod tests {
         Observations::from_campaign(&builder.finish(), 1, 0.005).unwrap()
     }
 
-    #[test]
-    fn every_effect_is_silent_at_its_null_and_acts_off_it() {
+    /// The observations of [`observations`] on the paper's phantom, its
+    /// forward model and a baseline start.
+    fn paper_forward() -> (Observations, Forward, Baseline) {
         let obs = observations();
         let phantom = Phantom {
             width: 0.075,
@@ -565,6 +566,12 @@ mod tests {
             poisson_ratio: 0.45,
             shaft_density: 10.0,
         };
+        (obs, forward, start)
+    }
+
+    #[test]
+    fn every_effect_is_silent_at_its_null_and_acts_off_it() {
+        let (obs, forward, start) = paper_forward();
         let baseline = Model::new(&ModelSpec::baseline(), &forward.geometry, start).unwrap();
         let p0: Vec<f64> = baseline.parameters.iter().map(|p| p.initial).collect();
         let reference = forward.predict(&baseline, &p0, &obs).unwrap().values;
@@ -607,19 +614,7 @@ mod tests {
 
     #[test]
     fn needle_force_integrates_the_density() {
-        let obs = observations();
-        let phantom = Phantom {
-            width: 0.075,
-            depth: 0.075,
-            thickness: 0.0075,
-            fixed: vec![needle_data::Face::Back],
-        };
-        let forward = Forward::new(&phantom, &obs.rest, 1).unwrap();
-        let start = Baseline {
-            youngs_modulus: 25.0e3,
-            poisson_ratio: 0.45,
-            shaft_density: 10.0,
-        };
+        let (obs, forward, start) = paper_forward();
         let model = Model::new(
             &ModelSpec::from_ids(&["tip_cutting_force"]).unwrap(),
             &forward.geometry,
