@@ -61,6 +61,8 @@ fn paper_size(c: &mut Criterion) {
     for (name, policy) in [
         ("immediate", UpdatePolicy::Immediate),
         ("buffered16", UpdatePolicy::Buffered { max_pending: 16 }),
+        ("buffered32", UpdatePolicy::Buffered { max_pending: 32 }),
+        ("buffered64", UpdatePolicy::Buffered { max_pending: 64 }),
     ] {
         let (_, mut system) = planar(policy, 361);
         assert_eq!(system.len(), 722);
@@ -78,8 +80,8 @@ fn paper_size(c: &mut Criterion) {
             system.exchange(i).unwrap();
             system.exchange(i).unwrap();
         }
-        if let UpdatePolicy::Buffered { .. } = policy {
-            while system.pending() != 8 {
+        if let UpdatePolicy::Buffered { max_pending } = policy {
+            while system.pending() != max_pending / 2 {
                 let i = system.coordinate(needle[0], 1).unwrap();
                 system.exchange(i).unwrap();
             }

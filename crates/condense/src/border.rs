@@ -106,17 +106,12 @@ impl CondensedSystem {
         }
 
         let new_n = n + d;
-        self.pristine.resize(new_n, new_n);
         self.base.resize(new_n, new_n);
         let rows_u = self.pending_u.cols();
         self.pending_u.resize(new_n, rows_u);
         self.pending_w.resize(new_n, rows_u);
         for a in 0..d {
-            let column = &columns[a * n_free..(a + 1) * n_free];
             for k in 0..n {
-                let value = column[self.free_of_coord[k]];
-                self.pristine.set(k, n + a, value);
-                self.pristine.set(n + a, k, value);
                 let border = if self.displacement_given[k] {
                     -s_g[a * n + k]
                 } else {
@@ -135,7 +130,6 @@ impl CondensedSystem {
                     .filter(|&j| self.displacement_given[j])
                     .map(|j| g[a * n + j] * s_g[b * n + j])
                     .sum();
-                self.pristine.set(n + a, n + b, gamma);
                 self.base.set(n + a, n + b, gamma - correction);
             }
         }
@@ -169,10 +163,8 @@ impl CondensedSystem {
         if slot != last_slot {
             for a in 0..d {
                 let (from, to) = (last0 + a, b0 + a);
-                for matrix in [&mut self.pristine, &mut self.base] {
-                    matrix.copy_col(from, to);
-                    matrix.copy_row(from, to);
-                }
+                self.base.copy_col(from, to);
+                self.base.copy_row(from, to);
                 self.pending_u.copy_row(from, to);
                 self.pending_w.copy_row(from, to);
                 self.free_of_coord[to] = self.free_of_coord[from];
@@ -191,7 +183,6 @@ impl CondensedSystem {
         self.free_of_coord.truncate(new_n);
         self.displacement_given.truncate(new_n);
         self.prescribed.truncate(new_n);
-        self.pristine.resize(new_n, new_n);
         self.base.resize(new_n, new_n);
         let cols_u = self.pending_u.cols();
         self.pending_u.resize(new_n, cols_u);

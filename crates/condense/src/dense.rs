@@ -2,7 +2,9 @@
 //! added and removed without reallocating, and every column is one contiguous
 //! slice (the O(N^2) updates are memory-bandwidth bound: they stream columns).
 
-use faer::{MatMut, MatRef};
+use faer::linalg::matmul::dot::inner_prod;
+use faer::linalg::matmul::matmul;
+use faer::{Accum, ColRef, Conj, MatMut, MatRef, Par, RowRef};
 
 /// A `rows x cols` column-major matrix stored with column stride `stride >= rows`
 /// and room for `col_capacity >= cols` columns.
@@ -151,6 +153,19 @@ impl Dense {
         )
     }
 
+    /// `self += column row^T` in one streaming pass (faer's SIMD kernel: the
+    /// update is memory-bandwidth bound, one read and one write per entry).
+    pub(crate) fn add_outer(&mut self, column: &[f64], row: &[f64]) {
+        matmul(
+            self.as_mut(),
+            Accum::Add,
+            ColRef::from_slice(column).as_mat(),
+            RowRef::from_slice(row).as_mat(),
+            1.0,
+            Par::Seq,
+        );
+    }
+
     /// Length of the storage prefix that holds the visible matrix.
     fn span(&self) -> usize {
         if self.cols == 0 {
@@ -166,20 +181,14 @@ fn grown(capacity: usize) -> usize {
     capacity + capacity / 4 + 16
 }
 
-/// Dot product with independent partial sums, so that it vectorises.
+/// Dot product through faer's SIMD kernel, which picks AVX2/FMA or AVX-512
+/// at run time (the crate is built for baseline x86-64, where a plain loop
+/// would get SSE2 without FMA).
 pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let mut partial = [0.0; 8];
-    let (a_chunks, b_chunks) = (a.chunks_exact(8), b.chunks_exact(8));
-    let tail: f64 = a_chunks
-        .remainder()
-        .iter()
-        .zip(b_chunks.remainder())
-        .map(|(x, y)| x * y)
-        .sum();
-    for (x, y) in a_chunks.zip(b_chunks) {
-        for k in 0..8 {
-            partial[k] += x[k] * y[k];
-        }
-    }
-    partial.iter().sum::<f64>() + tail
+    inner_prod(
+        RowRef::from_slice(a),
+        Conj::No,
+        ColRef::from_slice(b),
+        Conj::No,
+    )
 }

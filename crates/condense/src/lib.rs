@@ -26,7 +26,7 @@
 //! - answers the per-tick query of the needle unknowns in O(m N)
 //!   ([`CondensedSystem::unknowns_into`]), apart from the graphics-rate query
 //!   of all unknowns ([`CondensedSystem::unknowns_all_into`]);
-//! - measures accumulated round-off against the untouched `K_W^{-1}` and
+//! - measures accumulated round-off against the factorised full model and
 //!   rebuilds exactly when it exceeds a bound ([`CondensedSystem::drift`],
 //!   [`CondensedSystem::refresh`]).
 //!

@@ -56,9 +56,6 @@ pub struct CondensedSystem {
     pub(crate) slot_of: HashMap<usize, usize>,
     /// Free-dof index (in the full model) of each working coordinate.
     pub(crate) free_of_coord: Vec<usize>,
-    /// `K_W^{-1}` in the global frame, untouched by updates: the model the drift
-    /// check and the refresh go back to.
-    pub(crate) pristine: Dense,
     /// `S_b`: with the pending buffer, `S = S_b + U W^T`.
     pub(crate) base: Dense,
     pub(crate) pending_u: Dense,
@@ -113,23 +110,8 @@ impl CondensedSystem {
             .map(|dof| model.free_index(dof).expect("checked free"))
             .collect();
         let n = free_of_coord.len();
-        let columns = model.solve_unit_columns(&free_of_coord);
-        let mut pristine = Dense::zeros(n, n, n, n);
-        for j in 0..n {
-            let col = pristine.col_mut(j);
-            for (i, &f) in free_of_coord.iter().enumerate() {
-                col[i] = columns[(f, j)];
-            }
-        }
-        // K^{-1} is symmetric; the solves agree with it only to round-off, and the
-        // sign symmetry the updates rely on wants it exact.
-        for j in 0..n {
-            for i in 0..j {
-                let mean = 0.5 * (pristine.get(i, j) + pristine.get(j, i));
-                pristine.set(i, j, mean);
-                pristine.set(j, i, mean);
-            }
-        }
+        let mut base = Dense::zeros(n, n, n, n);
+        fill_compliance(&model, &free_of_coord, &mut base);
         let max_pending = match policy {
             UpdatePolicy::Immediate => 0,
             UpdatePolicy::Buffered { max_pending } => max_pending.max(1),
@@ -144,8 +126,7 @@ impl CondensedSystem {
             nodes: working_nodes.to_vec(),
             slot_of,
             free_of_coord,
-            base: pristine.clone(),
-            pristine,
+            base,
             pending_u: Dense::zeros(n, max_pending, n, max_pending),
             pending_w: Dense::zeros(n, max_pending, n, max_pending),
             pending: 0,
@@ -164,7 +145,6 @@ impl CondensedSystem {
     /// additions of a haptic loop never reallocate the N x N matrices.
     pub fn reserve(&mut self, extra_nodes: usize) {
         let capacity = self.len() + extra_nodes * self.dim;
-        self.pristine.reserve(capacity, capacity);
         self.base.reserve(capacity, capacity);
         let k = self.pending_u.cols();
         self.pending_u.reserve(capacity, k);
@@ -290,13 +270,21 @@ impl CondensedSystem {
     /// Column `j` of the current `S` into `out`: `S_b[:, j] + U W[j, :]^T`.
     pub(crate) fn current_column_into(&self, j: usize, out: &mut [f64]) {
         out.copy_from_slice(self.base.col(j));
-        for l in 0..self.pending {
-            let weight = self.pending_w.get(j, l);
-            if weight != 0.0 {
-                for (o, u) in out.iter_mut().zip(self.pending_u.col(l)) {
-                    *o += weight * u;
-                }
-            }
+        let k = self.pending;
+        if k > 0 {
+            let n = out.len();
+            faer::linalg::matmul::matmul(
+                faer::MatMut::from_column_major_slice_mut(out, n, 1),
+                faer::Accum::Add,
+                self.pending_u.as_ref().subcols(0, k),
+                self.pending_w
+                    .as_ref()
+                    .subrows(j, 1)
+                    .subcols(0, k)
+                    .transpose(),
+                1.0,
+                faer::Par::Seq,
+            );
         }
     }
 
@@ -304,15 +292,7 @@ impl CondensedSystem {
     /// else streamed over the columns of `S_b`.
     pub(crate) fn add_rank_one(&mut self, column: &[f64], row: &[f64]) {
         match self.policy {
-            UpdatePolicy::Immediate => {
-                for (j, &weight) in row.iter().enumerate() {
-                    if weight != 0.0 {
-                        for (s, c) in self.base.col_mut(j).iter_mut().zip(column) {
-                            *s += weight * c;
-                        }
-                    }
-                }
-            }
+            UpdatePolicy::Immediate => self.base.add_outer(column, row),
             UpdatePolicy::Buffered { max_pending } => {
                 if self.pending == max_pending {
                     self.fold();
@@ -353,5 +333,26 @@ impl CondensedSystem {
         s.signed_prescribed.resize(n, 0.0);
         s.projected.resize(self.pending_u.cols().max(1), 0.0);
         s.block.resize(4 * n * d, 0.0);
+    }
+}
+
+/// Writes `K_W^{-1}` (global frame) of the working coordinates `free_of_coord`
+/// into `target` (already `N x N`), column by column from parallel sparse solves.
+pub(crate) fn fill_compliance(model: &FullModel, free_of_coord: &[usize], target: &mut Dense) {
+    let columns = model.solve_unit_columns(free_of_coord);
+    for j in 0..free_of_coord.len() {
+        let col = target.col_mut(j);
+        for (i, &f) in free_of_coord.iter().enumerate() {
+            col[i] = columns[(f, j)];
+        }
+    }
+    // K^{-1} is symmetric; the solves agree with it only to round-off, and the
+    // sign symmetry the updates rely on wants it exact.
+    for j in 0..free_of_coord.len() {
+        for i in 0..j {
+            let mean = 0.5 * (target.get(i, j) + target.get(j, i));
+            target.set(i, j, mean);
+            target.set(j, i, mean);
+        }
     }
 }

@@ -51,7 +51,8 @@ pub enum Stage {
         /// All.
         total: usize,
     },
-    /// Needle insertions of one day, `done` days of `total`.
+    /// Needle insertions, `done` days of `total` (all days advance
+    /// together, so this is reported once, when they are all done).
     Needles {
         /// Finished days.
         done: usize,
@@ -344,29 +345,34 @@ fn run_needles(
     progress: &(impl Fn(Stage) + Sync),
 ) -> Result<(Vec<NeedleRun>, usize), SynthError> {
     let scenario = world.scenario;
-    let plans = scenario.needles.plan();
+    let mut plans = scenario.needles.plan();
+    plans.sort_by(|a, b| a.day.total_cmp(&b.day));
     let mut days: Vec<f64> = plans.iter().map(|p| p.day).collect();
-    days.sort_by(f64::total_cmp);
     days.dedup();
-    let mut runs = Vec::with_capacity(plans.len());
-    let mut solves = 0;
-    for (d, &day) in days.iter().enumerate() {
-        let today: Vec<_> = plans.iter().copied().filter(|p| p.day == day).collect();
-        let response = world.response(day, &[])?;
-        let done = insert(
-            world,
-            &response,
-            &today,
-            scenario.needles.depth,
-            scenario.resolution.depth_step,
-        )?;
-        solves += done.iter().map(|r| r.solves).sum::<usize>();
-        runs.extend(done);
-        progress(Stage::Needles {
-            done: d + 1,
-            total: days.len(),
-        });
-    }
+    let responses = days
+        .iter()
+        .map(|&day| world.response(day))
+        .collect::<Result<Vec<_>, _>>()?;
+    // Every trial advances together, so that days sharing a factorisation
+    // share each back-substitution.
+    let trials: Vec<_> = plans
+        .iter()
+        .map(|plan| {
+            let d = days.partition_point(|&day| day < plan.day);
+            (*plan, &responses[d])
+        })
+        .collect();
+    let runs = insert(
+        world,
+        &trials,
+        scenario.needles.depth,
+        scenario.resolution.depth_step,
+    )?;
+    progress(Stage::Needles {
+        done: days.len(),
+        total: days.len(),
+    });
+    let solves = runs.iter().map(|r| r.solves).sum();
     Ok((runs, solves))
 }
 

@@ -24,9 +24,12 @@
 //!   triangles; with it, a slab of 10-node tetrahedra with several layers
 //!   through the thickness, markers read on the top face, the needle load
 //!   on the mid-plane.
-//! - A linear truth factorises $K$ once per day (and once per probe, whose
-//!   face is held) and every state is a back-substitution; all needle
-//!   trials of a day share the factorisation and advance together.
+//! - A linear truth factorises $K$ once for every day whose moduli are a
+//!   uniform multiple of the day-0 moduli (stiffening over days scales the
+//!   solution by $1/c$), and every state is a back-substitution; probes
+//!   hold their face by Lagrange multipliers on that same factorisation,
+//!   and all needle trials advance together, one back-substitution with
+//!   several right-hand sides per iteration.
 //! - Needle shaft loads act at the material points whose deformed images
 //!   lie on the needle ([`needle`]); the tool force is their integral.
 //! - Measurements: force sensor noise and quantisation, Gaussian marker

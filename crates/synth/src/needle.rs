@@ -11,21 +11,26 @@
 //! depends on where the load acts, each state is a fixed-point iteration:
 //! place the loads at $X^k$, solve $u^k$, move the points to
 //! $X^{k+1} = p - u^k(X^{k+1})$ (itself a fixed point, solved by
-//! substitution), until no material point moves by more than
-//! [`CONSISTENCY_TOLERANCE`]. The tip's material point comes out of the
-//! same relation.
+//! Newton's method), until no material point moves by more than
+//! [`CONSISTENCY_TOLERANCE`]; the field that places the next loads is
+//! mixed with the previous one (a secant step, see `Mixing`), which
+//! removes the slowest mode of the plain substitution. The tip's material
+//! point comes out of the same relation.
 //!
 //! States are solved on a uniform grid of tip depths; the first guess of
 //! each is the displacement extrapolated linearly from the two previous
-//! states, so that one or two solves usually suffice. All trials of one day
-//! share one factorisation and advance together, so each solve is one
-//! back-substitution with several right-hand sides.
+//! states, so that one or two solves usually suffice. All trials advance
+//! together: those whose days share a factorisation (see [`World`]) are
+//! solved as one back-substitution with several right-hand sides, and the
+//! placements of the trials are computed in parallel.
+
+use rayon::prelude::*;
 
 use crate::body::{Body, invert3};
 use crate::error::SynthError;
 use crate::scenario::NeedlePlan;
 use crate::shaft::ShaftLoad;
-use crate::world::{Response, World};
+use crate::world::{Response, World, solve_each};
 
 /// Largest allowed move of a loaded material point between the last two
 /// iterations of a state (m): 0.1 µm, far below any marker noise.
@@ -63,22 +68,22 @@ struct Advance {
     previous: Vec<Vec<f64>>,
 }
 
-/// Simulates the insertions of `plans`, all on the day of `response`, to
-/// `depth` in states `step` apart.
+/// Simulates the insertions `trials`, each a plan and the response of the
+/// phantom on its day, to `depth` in states `step` apart.
 pub(crate) fn insert(
     world: &World,
-    response: &Response,
-    plans: &[NeedlePlan],
+    trials: &[(NeedlePlan, &Response)],
     depth: f64,
     step: f64,
 ) -> Result<Vec<NeedleRun>, SynthError> {
+    let responses: Vec<&Response> = trials.iter().map(|t| t.1).collect();
     let body = &world.body;
     let dofs = body.dof_count();
     let states = (depth / step).ceil().max(1.0) as usize;
     let shaft_step = world.scenario.resolution.shaft_step;
-    let mut trials: Vec<Advance> = plans
+    let mut trials: Vec<Advance> = trials
         .iter()
-        .map(|plan| {
+        .map(|(plan, _)| {
             let load = ShaftLoad::of(world.scenario, plan);
             let mut run = NeedleRun {
                 plan: *plan,
@@ -110,11 +115,12 @@ pub(crate) fn insert(
             })
             .collect();
         let mut placed: Vec<Placement> = trials
-            .iter()
+            .par_iter()
             .zip(&guesses)
             .map(|(t, u)| place(body, &t.run, tip, u, shaft_step))
             .collect();
         let mut done = vec![false; trials.len()];
+        let mut mixing: Vec<Mixing> = trials.iter().map(|_| Mixing::default()).collect();
         let mut solutions: Vec<Vec<f64>> = vec![Vec::new(); trials.len()];
         let mut largest_move = f64::INFINITY;
         for iteration in 0.. {
@@ -130,26 +136,43 @@ pub(crate) fn insert(
                 });
             }
             let loads: Vec<Vec<f64>> = active
-                .iter()
+                .par_iter()
                 .map(|&i| placed[i].loads(body, dofs))
                 .collect();
-            let starts: Vec<Vec<f64>> = active.iter().map(|&i| guesses[i].clone()).collect();
-            let solved = response.solve(body, &loads, &starts, &[])?;
+            let jobs: Vec<(&Response, &[f64], &[f64])> = active
+                .iter()
+                .zip(&loads)
+                .map(|(&i, f)| (responses[i], f.as_slice(), guesses[i].as_slice()))
+                .collect();
+            let solved = solve_each(body, &jobs)?;
+            let nexts: Vec<Placement> = active
+                .par_iter()
+                .zip(&solved)
+                .map(|(&i, u)| place(body, &trials[i].run, tip, u, shaft_step))
+                .collect();
             largest_move = 0.0;
-            for (&i, u) in active.iter().zip(solved) {
+            let mut moving = Vec::new();
+            for ((&i, u), next) in active.iter().zip(solved).zip(nexts) {
                 trials[i].run.solves += 1;
-                let next = place(body, &trials[i].run, tip, &u, shaft_step);
                 let moved = next.moved_from(&placed[i]);
                 largest_move = largest_move.max(moved);
                 if moved < CONSISTENCY_TOLERANCE {
                     // Keep the placement that was applied, so that u
                     // answers exactly the recorded load.
                     done[i] = true;
+                    solutions[i] = u;
                 } else {
-                    placed[i] = next;
+                    let applied = std::mem::take(&mut guesses[i]);
+                    guesses[i] = mixing[i].next(applied, u);
+                    moving.push(i);
                 }
-                guesses[i] = u.clone();
-                solutions[i] = u;
+            }
+            let replaced: Vec<Placement> = moving
+                .par_iter()
+                .map(|&i| place(body, &trials[i].run, tip, &guesses[i], shaft_step))
+                .collect();
+            for (&i, p) in moving.iter().zip(replaced) {
+                placed[i] = p;
             }
         }
         for ((t, u), p) in trials.iter_mut().zip(solutions).zip(&placed) {
@@ -168,6 +191,47 @@ pub(crate) fn insert(
         }
     }
     Ok(trials.into_iter().map(|t| t.run).collect())
+}
+
+/// Anderson mixing of depth one for the consistency iteration of one state
+/// (a secant step): the map $T(v) = K^{-1} f(\mathrm{place}(v))$ from the
+/// field that places the loads to the field they cause has its fixed point
+/// at the consistent state. Plain substitution $v_{k+1} = T(v_k)$ contracts
+/// by about the strain along the needle per step; with the residuals
+/// $r_k = T(v_k) - v_k$, the next field
+/// $$v_{k+1} = T(v_k) - \gamma\,(T(v_k) - T(v_{k-1})),\qquad
+/// \gamma = \frac{r_k\cdot(r_k - r_{k-1})}{\lVert r_k - r_{k-1}\rVert^2},$$
+/// removes the slowest mode. It only chooses where the loads go next: a
+/// state is accepted, as without mixing, when the placement of its solution
+/// differs from the applied one by less than [`CONSISTENCY_TOLERANCE`].
+#[derive(Default)]
+struct Mixing {
+    /// $(T(v_{k-1}), r_{k-1})$.
+    last: Option<(Vec<f64>, Vec<f64>)>,
+}
+
+impl Mixing {
+    /// The next field to place the loads with, after `applied` ($v_k$)
+    /// gave `solved` ($T(v_k)$).
+    fn next(&mut self, applied: Vec<f64>, solved: Vec<f64>) -> Vec<f64> {
+        let residual: Vec<f64> = solved.iter().zip(&applied).map(|(t, v)| t - v).collect();
+        let mut next = solved.clone();
+        if let Some((last_solved, last_residual)) = &self.last {
+            let (mut num, mut den) = (0.0, 0.0);
+            for (r, q) in residual.iter().zip(last_residual) {
+                num += r * (r - q);
+                den += (r - q) * (r - q);
+            }
+            if den > 0.0 {
+                let gamma = num / den;
+                for (n, l) in next.iter_mut().zip(last_solved) {
+                    *n -= gamma * (*n - l);
+                }
+            }
+        }
+        self.last = Some((solved, residual));
+        next
+    }
 }
 
 /// The loaded material points of one state for one displacement field.

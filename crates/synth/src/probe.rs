@@ -5,14 +5,24 @@
 //! The front-face nodes under the probe have $u_y = \delta$ and are free
 //! along x (and z); the force the probe applies is the sum of the
 //! reactions $r_y = (f_{int}(u))_y$ at those nodes, and its moment about
-//! the probe centre is $\sum (x_n - x_p)\,r_{y,n}$. The linear truth is
-//! exactly proportional to $\delta$, so one solve at unit indentation
-//! gives every frame; the nonlinear truth is solved by Newton iteration on
-//! a grid of indentations and interpolated between them.
+//! the probe centre is $\sum (x_n - x_p)\,r_{y,n}$.
+//!
+//! The linear truth is exactly proportional to $\delta$, so one solve
+//! gives every frame. It reuses the day's factorisation (supports held
+//! only) through Lagrange multipliers instead of factorising with the
+//! probe face held: with $C$ selecting the $m$ held components,
+//! $$K u = C^T \lambda,\qquad C u = \delta\,\mathbf 1
+//! \;\Rightarrow\; u = G\lambda,\quad G = K^{-1}C^T,\quad
+//! (C G)\,\lambda = \delta\,\mathbf 1,$$
+//! $m$ back-substitutions and an $m \times m$ Cholesky solve; $\lambda$ are
+//! the reactions under the probe. The nonlinear truth holds the face in
+//! its Newton solver on a grid of indentations, interpolated between them.
+
+use nalgebra::{DMatrix, DVector};
 
 use crate::error::SynthError;
 use crate::scenario::ProbeTrial;
-use crate::world::{Response, World};
+use crate::world::World;
 
 /// The solved states of one probing trial.
 #[derive(Debug, Clone)]
@@ -38,15 +48,6 @@ pub(crate) fn press(world: &World, probe: &ProbeTrial) -> Result<ProbeRun, Synth
     let half = probe.width / 2.0 + tol;
     let contact = body.nodes_where(|x| x[1].abs() < tol && (x[0] - probe.x).abs() <= half);
     let held: Vec<usize> = contact.iter().map(|&n| n * body.dim + 1).collect();
-    let response = world.response(probe.day, &held)?;
-    let linear = matches!(response, Response::Linear { .. });
-    let states = if linear {
-        1
-    } else {
-        (probe.indentation / world.scenario.resolution.indentation_step)
-            .ceil()
-            .max(1.0) as usize
-    };
     let dofs = body.dof_count();
     let mut run = ProbeRun {
         probe: *probe,
@@ -56,23 +57,7 @@ pub(crate) fn press(world: &World, probe: &ProbeTrial) -> Result<ProbeRun, Synth
         moment: vec![0.0],
         last_displacement: vec![0.0; dofs],
     };
-    let mut u = vec![0.0; dofs];
-    for k in 1..=states {
-        let delta = probe.indentation * k as f64 / states as f64;
-        let mut prescribed = vec![0.0; dofs];
-        for &d in &held {
-            prescribed[d] = delta;
-        }
-        u = response
-            .solve(
-                body,
-                &[vec![0.0; dofs]],
-                std::slice::from_ref(&u),
-                &prescribed,
-            )?
-            .pop()
-            .expect("one load, one solution");
-        let reactions = response.internal_forces(body, &u);
+    let mut record = |delta: f64, u: Vec<f64>, reactions: &[f64]| {
         let force: f64 = contact.iter().map(|&n| reactions[n * body.dim + 1]).sum();
         let moment: f64 = contact
             .iter()
@@ -82,7 +67,52 @@ pub(crate) fn press(world: &World, probe: &ProbeTrial) -> Result<ProbeRun, Synth
         run.markers.push(world.marker_displacements(&u));
         run.force.push(force);
         run.moment.push(moment);
+        run.last_displacement = u;
+    };
+    if world.scenario.effects.material_nonlinearity.is_none() {
+        let response = world.response(probe.day)?;
+        let columns: Vec<Vec<f64>> = held
+            .iter()
+            .map(|&d| {
+                let mut e = vec![0.0; dofs];
+                e[d] = 1.0;
+                e
+            })
+            .collect();
+        let g = response.solve(body, &columns, &[])?;
+        let m = held.len();
+        let schur = DMatrix::from_fn(m, m, |i, j| g[j][held[i]]);
+        let lambda = schur
+            .cholesky()
+            .ok_or_else(|| SynthError::Factorisation {
+                what: format!("the probe at x = {} m", probe.x),
+                reason: "the probe face compliance is not positive definite".into(),
+            })?
+            .solve(&DVector::from_element(m, probe.indentation));
+        let mut u = vec![0.0; dofs];
+        for (column, l) in g.iter().zip(lambda.iter()) {
+            for (ui, gi) in u.iter_mut().zip(column) {
+                *ui += l * gi;
+            }
+        }
+        let reactions = response.internal_forces(body, &u);
+        record(probe.indentation, u, &reactions);
+        return Ok(run);
     }
-    run.last_displacement = u;
+    let solver = world.neo_hookean(probe.day, &held)?;
+    let states = (probe.indentation / world.scenario.resolution.indentation_step)
+        .ceil()
+        .max(1.0) as usize;
+    let mut u = vec![0.0; dofs];
+    for k in 1..=states {
+        let delta = probe.indentation * k as f64 / states as f64;
+        let mut prescribed = vec![0.0; dofs];
+        for &d in &held {
+            prescribed[d] = delta;
+        }
+        u = solver.solve(body, &vec![0.0; dofs], &u, &prescribed)?;
+        let reactions = solver.internal_forces(body, &u);
+        record(delta, u.clone(), &reactions);
+    }
     Ok(run)
 }

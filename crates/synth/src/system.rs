@@ -136,7 +136,7 @@ impl Factorised {
 
     /// Solves for several load vectors at once (full size; entries on held
     /// components are ignored) with the held components at zero.
-    pub fn solve(&self, loads: &[Vec<f64>]) -> Vec<Vec<f64>> {
+    pub fn solve(&self, loads: &[&[f64]]) -> Vec<Vec<f64>> {
         let m = self.free.len();
         let mut rhs = faer::Mat::<f64>::zeros(m, loads.len());
         for (c, f) in loads.iter().enumerate() {
@@ -169,7 +169,7 @@ impl Factorised {
         }
         let load: Vec<f64> = stiffness.multiply(&held_part).iter().map(|v| -v).collect();
         let mut u = self
-            .solve(&[load])
+            .solve(&[&load])
             .pop()
             .expect("one load gives one solution");
         for (dof, &v) in held_part.iter().enumerate() {

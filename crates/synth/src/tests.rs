@@ -1,12 +1,13 @@
 //! Unit tests of the truth physics on small meshes (they need the crate's
 //! internals: reactions, material points, tangents).
 
+use crate::effect::MaterialStiffening;
 use crate::effect::material_nonlinearity::{NeoHookean, uniaxial_nominal_stress};
 use crate::effect::{CompliantSupport, Effects, LayeredStiffness, OutOfPlane, TipCuttingForce};
 use crate::needle::{CONSISTENCY_TOLERANCE, insert};
 use crate::probe::press;
 use crate::scenario::{NeedlePlan, Scenario};
-use crate::system::Stiffness;
+use crate::system::{Factorised, Stiffness};
 use crate::world::World;
 use needle_fem::material::Materials;
 
@@ -52,11 +53,10 @@ fn needle_load_is_balanced_by_the_fixed_face() {
         },
     ] {
         let world = World::new(&s).unwrap();
-        let response = world.response(0.0, &[]).unwrap();
+        let response = world.response(0.0).unwrap();
         let run = insert(
             &world,
-            &response,
-            &[plan(&s)],
+            &[(plan(&s), &response)],
             s.needles.depth,
             s.resolution.depth_step,
         )
@@ -89,11 +89,10 @@ fn needle_load_is_balanced_by_the_fixed_face() {
 fn needle_tip_is_solved_consistently() {
     let s = small();
     let world = World::new(&s).unwrap();
-    let response = world.response(0.0, &[]).unwrap();
+    let response = world.response(0.0).unwrap();
     let run = &insert(
         &world,
-        &response,
-        &[plan(&s)],
+        &[(plan(&s), &response)],
         s.needles.depth,
         s.resolution.depth_step,
     )
@@ -138,6 +137,104 @@ fn probe_force_balances_the_fixed_face_and_scales_linearly() {
     )
     .unwrap();
     assert!((2.0 * half.force.last().unwrap() - force).abs() < 1e-9 * force);
+}
+
+/// The stiffness of `s`'s phantom at modulus `e`, factorised with the back
+/// face and `extra` components held: the direct solve the shared
+/// factorisation and the probe's Lagrange multipliers must reproduce.
+fn direct(world: &World, e: f64, extra: &[usize]) -> (Stiffness, Factorised) {
+    let materials =
+        Materials::from_parameters(&[(e, world.scenario.phantom.poisson_ratio)]).unwrap();
+    let k = Stiffness::new(&world.body.stiffness(&materials).unwrap(), &[]).unwrap();
+    let mut held = world.fixed.clone();
+    for &d in extra {
+        held[d] = true;
+    }
+    let f = Factorised::new(&k, &held, "direct").unwrap();
+    (k, f)
+}
+
+fn largest_gap(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn stiffened_day_shares_the_factorisation_and_scales_exactly() {
+    let mut s = small();
+    s.effects.material_stiffening = Some(MaterialStiffening { rate_per_day: 0.05 });
+    let world = World::new(&s).unwrap();
+    let day = 4.0;
+    let e = s.phantom.youngs_modulus * 1.2;
+    let (_, direct) = direct(&world, e, &[]);
+    let mut load = vec![0.0; world.body.dof_count()];
+    let at = world.body.locate([0.03, 0.02, 0.0]).unwrap();
+    world.body.add_point_force(&at, [0.1, 0.3, 0.0], &mut load);
+    let expected = direct.solve(&[&load]).pop().unwrap();
+    let shared = world
+        .response(day)
+        .unwrap()
+        .solve(&world.body, &[load], &[])
+        .unwrap();
+    let scale = expected.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    assert!(largest_gap(&shared[0], &expected) < 1e-10 * scale);
+    // Day 0 and the stiffened day use the same factorisation.
+    let (a, b) = (world.response(0.0).unwrap(), world.response(day).unwrap());
+    match (a, b) {
+        (
+            crate::world::Response::Linear {
+                system: a,
+                scale: sa,
+            },
+            crate::world::Response::Linear {
+                system: b,
+                scale: sb,
+            },
+        ) => {
+            assert!(std::sync::Arc::ptr_eq(&a, &b));
+            assert_eq!(sa, 1.0);
+            assert!((sb - 1.2).abs() < 1e-12);
+        }
+        _ => panic!("the linear truth answers linearly"),
+    }
+}
+
+#[test]
+fn probe_by_lagrange_multipliers_equals_the_held_face_solve() {
+    for s in [
+        small(),
+        Scenario {
+            effects: Effects {
+                out_of_plane: Some(OutOfPlane),
+                ..Effects::none()
+            },
+            ..small()
+        },
+    ] {
+        let world = World::new(&s).unwrap();
+        let probe = s.probes[0];
+        let run = press(&world, &probe).unwrap();
+        let dim = world.body.dim;
+        let contact = world.body.nodes_where(|x| {
+            x[1].abs() < 1e-12 && (x[0] - probe.x).abs() <= probe.width / 2.0 + 1e-12
+        });
+        assert!(contact.len() >= 3);
+        let held: Vec<usize> = contact.iter().map(|&n| n * dim + 1).collect();
+        let (k, f) = direct(&world, s.phantom.youngs_modulus, &held);
+        let mut prescribed = vec![0.0; world.body.dof_count()];
+        for &d in &held {
+            prescribed[d] = probe.indentation;
+        }
+        let expected = f.solve_prescribed(&k, &prescribed);
+        let gap = largest_gap(&run.last_displacement, &expected);
+        assert!(gap < 1e-9 * probe.indentation, "gap {gap}");
+        let r = k.multiply(&expected);
+        let force: f64 = held.iter().map(|&d| r[d]).sum();
+        let got = *run.force.last().unwrap();
+        assert!((got - force).abs() < 1e-9 * force, "{got} vs {force}");
+    }
 }
 
 #[test]
@@ -235,11 +332,10 @@ fn out_of_plane_markers_move_less_than_the_mid_plane() {
         ..small()
     };
     let world = World::new(&s).unwrap();
-    let response = world.response(0.0, &[]).unwrap();
+    let response = world.response(0.0).unwrap();
     let run = &insert(
         &world,
-        &response,
-        &[plan(&s)],
+        &[(plan(&s), &response)],
         s.needles.depth,
         s.resolution.depth_step,
     )
@@ -268,11 +364,10 @@ fn compliant_support_lets_the_back_face_move() {
     });
     let world = World::new(&s).unwrap();
     assert!(world.fixed.iter().all(|f| !f));
-    let response = world.response(0.0, &[]).unwrap();
+    let response = world.response(0.0).unwrap();
     let run = &insert(
         &world,
-        &response,
-        &[plan(&s)],
+        &[(plan(&s), &response)],
         s.needles.depth,
         s.resolution.depth_step,
     )

@@ -1,5 +1,14 @@
 //! The truth world of one scenario: the meshed phantom, its supports and
 //! springs, its material on any day, and the solver of its response.
+//!
+//! The linear stiffness is linear in the moduli: $K(cE) = c\,K(E)$ for a
+//! uniform factor $c$, so $u = K(cE)^{-1} f = c^{-1} K(E)^{-1} f$. Every day
+//! whose moduli are a uniform multiple of the day-0 moduli (stiffening over
+//! days) therefore shares one factorisation, made on first use, and scales
+//! its solutions by $1/c$. Springs (compliant support, platform) do not
+//! scale with $E$; with them each day is factorised on its own.
+
+use std::sync::{Arc, Mutex};
 
 use needle_fem::material::Materials;
 
@@ -25,6 +34,8 @@ pub(crate) struct World<'s> {
     pub markers: Vec<[f64; 2]>,
     /// Where each marker lies in the mesh.
     pub marker_locations: Vec<Location>,
+    /// The day-0 linear system with the supports held, once made.
+    reference: Mutex<Option<Arc<LinearSystem>>>,
 }
 
 impl<'s> World<'s> {
@@ -91,6 +102,7 @@ impl<'s> World<'s> {
             springs,
             markers,
             marker_locations,
+            reference: Mutex::new(None),
         })
     }
 
@@ -104,27 +116,65 @@ impl<'s> World<'s> {
         }
     }
 
-    /// The response of the phantom on `day`, with `extra_held` components
-    /// held besides the supports (a probe face).
-    pub fn response(&self, day: f64, extra_held: &[usize]) -> Result<Response, SynthError> {
+    /// The response of the phantom on `day` with the supports held.
+    pub fn response(&self, day: f64) -> Result<Response, SynthError> {
+        if self.scenario.effects.material_nonlinearity.is_some() {
+            return Ok(Response::NeoHookean(self.neo_hookean(day, &[])?));
+        }
+        let moduli = self.moduli(day);
+        if !self.springs.is_empty() {
+            let system = self.linear_system(&moduli, &format!("the phantom on day {day}"))?;
+            return Ok(Response::Linear {
+                system: Arc::new(system),
+                scale: 1.0,
+            });
+        }
+        let base = self.moduli(0.0);
+        let scale = moduli[0] / base[0];
+        let uniform = moduli
+            .iter()
+            .zip(&base)
+            .all(|(m, b)| (m - scale * b).abs() <= 1e-12 * m.abs());
+        if !uniform {
+            let system = self.linear_system(&moduli, &format!("the phantom on day {day}"))?;
+            return Ok(Response::Linear {
+                system: Arc::new(system),
+                scale: 1.0,
+            });
+        }
+        let mut reference = self.reference.lock().expect("no panic while factorising");
+        let system = match &*reference {
+            Some(system) => Arc::clone(system),
+            None => {
+                let system = Arc::new(self.linear_system(&base, "the phantom on day 0")?);
+                *reference = Some(Arc::clone(&system));
+                system
+            }
+        };
+        Ok(Response::Linear { system, scale })
+    }
+
+    /// The neo-Hookean phantom on `day`, with `extra_held` components held
+    /// besides the supports (a probe face).
+    pub fn neo_hookean(&self, day: f64, extra_held: &[usize]) -> Result<NeoHookean, SynthError> {
         let nu = self.scenario.phantom.poisson_ratio;
         let pairs: Vec<(f64, f64)> = self.moduli(day).into_iter().map(|e| (e, nu)).collect();
         let mut held = self.fixed.clone();
         for &d in extra_held {
             held[d] = true;
         }
-        if self.scenario.effects.material_nonlinearity.is_some() {
-            return Ok(Response::NeoHookean(NeoHookean::new(
-                &self.body,
-                &pairs,
-                &self.springs,
-                held,
-            )?));
-        }
+        NeoHookean::new(&self.body, &pairs, &self.springs, held)
+    }
+
+    /// The linear stiffness with `moduli` per region, factorised with the
+    /// supports held.
+    fn linear_system(&self, moduli: &[f64], what: &str) -> Result<LinearSystem, SynthError> {
+        let nu = self.scenario.phantom.poisson_ratio;
+        let pairs: Vec<(f64, f64)> = moduli.iter().map(|&e| (e, nu)).collect();
         let materials = Materials::from_parameters(&pairs)?;
         let stiffness = Stiffness::new(&self.body.stiffness(&materials)?, &self.springs)?;
-        let factorised = Factorised::new(&stiffness, &held, &format!("the phantom on day {day}"))?;
-        Ok(Response::Linear {
+        let factorised = Factorised::new(&stiffness, &self.fixed, what)?;
+        Ok(LinearSystem {
             stiffness,
             factorised,
         })
@@ -142,60 +192,92 @@ impl<'s> World<'s> {
     }
 }
 
-/// How the phantom answers loads on one day.
+/// A linear stiffness and its free block, factorised.
+pub(crate) struct LinearSystem {
+    stiffness: Stiffness,
+    factorised: Factorised,
+}
+
+/// How the phantom answers loads on one day (supports held).
 pub(crate) enum Response {
-    /// Linear elasticity: one factorisation, every load a back-substitution.
+    /// Linear elasticity: a factorisation, possibly shared with other days,
+    /// whose stiffness is this day's divided by `scale`.
     Linear {
-        /// Total stiffness.
-        stiffness: Stiffness,
-        /// Its free block, factorised.
-        factorised: Factorised,
+        /// The (shared) system.
+        system: Arc<LinearSystem>,
+        /// This day's stiffness over the system's.
+        scale: f64,
     },
     /// Neo-Hookean material solved by Newton iteration.
     NeoHookean(NeoHookean),
 }
 
 impl Response {
-    /// Displacements for several load vectors; `start` are initial guesses
-    /// for the nonlinear solve (ignored by the linear one). Held
-    /// components take the values of `prescribed` (zero when empty).
+    /// Displacements for several load vectors (entries on held components
+    /// are ignored; they stay at zero); `start` are initial guesses for the
+    /// nonlinear solve (ignored by the linear one).
     pub fn solve(
         &self,
         body: &Body,
         loads: &[Vec<f64>],
         start: &[Vec<f64>],
-        prescribed: &[f64],
     ) -> Result<Vec<Vec<f64>>, SynthError> {
-        match self {
-            Response::Linear {
-                stiffness,
-                factorised,
-            } => {
-                if prescribed.iter().all(|&v| v == 0.0) {
-                    Ok(factorised.solve(loads))
-                } else {
-                    let base = factorised.solve_prescribed(stiffness, prescribed);
-                    let extra = factorised.solve(loads);
-                    Ok(extra
-                        .into_iter()
-                        .map(|u| u.iter().zip(&base).map(|(a, b)| a + b).collect())
-                        .collect())
-                }
-            }
-            Response::NeoHookean(solver) => loads
-                .iter()
-                .zip(start)
-                .map(|(f, u0)| solver.solve(body, f, u0, prescribed))
-                .collect(),
-        }
+        let jobs: Vec<(&Response, &[f64], &[f64])> = loads
+            .iter()
+            .enumerate()
+            .map(|(i, f)| (self, f.as_slice(), start.get(i).map_or(&[][..], |s| s)))
+            .collect();
+        solve_each(body, &jobs)
     }
 
     /// Reaction forces $r = f_{int}(u)$ (full vector): what the supports
     /// and prescribed components exert, where no external load acts.
     pub fn internal_forces(&self, body: &Body, u: &[f64]) -> Vec<f64> {
         match self {
-            Response::Linear { stiffness, .. } => stiffness.multiply(u),
+            Response::Linear { system, scale } => system
+                .stiffness
+                .multiply(u)
+                .into_iter()
+                .map(|r| scale * r)
+                .collect(),
             Response::NeoHookean(solver) => solver.internal_forces(body, u),
         }
     }
+}
+
+/// Solves each job `(response, load, start)`; the linear jobs whose
+/// responses share a factorisation are solved together, as one
+/// back-substitution with several right-hand sides, and each solution is
+/// divided by its own response's scale.
+pub(crate) fn solve_each(
+    body: &Body,
+    jobs: &[(&Response, &[f64], &[f64])],
+) -> Result<Vec<Vec<f64>>, SynthError> {
+    let mut solutions: Vec<Vec<f64>> = vec![Vec::new(); jobs.len()];
+    let mut groups: Vec<(&Arc<LinearSystem>, Vec<usize>)> = Vec::new();
+    for (i, (response, load, start)) in jobs.iter().enumerate() {
+        match response {
+            Response::Linear { system, .. } => {
+                match groups.iter_mut().find(|g| Arc::ptr_eq(g.0, system)) {
+                    Some(group) => group.1.push(i),
+                    None => groups.push((system, vec![i])),
+                }
+            }
+            Response::NeoHookean(solver) => {
+                let zero = vec![0.0; load.len()];
+                let start = if start.is_empty() { &zero[..] } else { start };
+                solutions[i] = solver.solve(body, load, start, &[])?
+            }
+        }
+    }
+    for (system, members) in groups {
+        let loads: Vec<&[f64]> = members.iter().map(|&i| jobs[i].1).collect();
+        for (&i, mut u) in members.iter().zip(system.factorised.solve(&loads)) {
+            if let Response::Linear { scale, .. } = jobs[i].0 {
+                u.iter_mut().for_each(|v| *v /= scale);
+            }
+            solutions[i] = u;
+        }
+    }
+    Ok(solutions)
 }

@@ -1,12 +1,16 @@
-//! Discretisation error of the truth, behind `#[ignore]` (minutes in
-//! debug). Run with
-//! `cargo test -p needle-synth --release --test convergence -- --ignored --nocapture`.
+//! Discretisation error of the truth, behind `#[ignore]` (minutes). Run
+//! with
+//! `cargo test -p needle-synth --release --test convergence -- --ignored --nocapture --test-threads 1`.
 //!
-//! The 3-D null slab is solved for one 1 mm/s insertion to 50 mm at
-//! increasing mesh refinement; the final marker displacements are compared
-//! with the finest mesh. The test asserts that the default resolution is
-//! within a tenth of the marker noise of the finest one, and prints the
-//! table that `docs/truth-world.md` quotes.
+//! The 3-D null slab is solved for one 1 mm/s insertion to 50 mm; the final
+//! marker displacements are compared between meshes. The error is taken
+//! as the sum of an in-plane part and a through-thickness part, each
+//! $e(h) \approx C h^p$, estimated by two separate refinement sequences
+//! (in-plane refinement r at the default layer count, and the layer count
+//! at the default in-plane size): from three levels the observed order
+//! $p$ and, by Richardson extrapolation, the error of each level. The
+//! test asserts that the default resolution is within a tenth of the
+//! marker noise, and prints the tables that `docs/truth-world.md` quotes.
 
 use needle_synth::{EffectId, Effects, Scenario, respond};
 
@@ -33,27 +37,88 @@ fn largest_difference(a: &[[f64; 2]], b: &[[f64; 2]]) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// Observed order $p$ from the differences of three levels of sizes
+/// $h_0 > h_1 > h_2$: solves
+/// $d_{01}/d_{12} = (h_0^p - h_1^p)/(h_1^p - h_2^p)$ by bisection.
+fn observed_order(h: [f64; 3], d01: f64, d12: f64) -> f64 {
+    let ratio = |p: f64| (h[0].powf(p) - h[1].powf(p)) / (h[1].powf(p) - h[2].powf(p));
+    let target = d01 / d12;
+    let (mut lo, mut hi) = (1e-3, 12.0);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        // The ratio grows with p.
+        if ratio(mid) < target {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
+/// Refines one direction over `levels` (sizes `sizes`), printing the
+/// differences to the finest level, the observed order from the last three
+/// and the extrapolated error of each level; returns the error of the
+/// first (coarsest) level.
+fn study(name: &str, sizes: &[f64], solutions: &[Vec<[f64; 2]>], sigma: f64) -> f64 {
+    let n = sizes.len();
+    let d = |i: usize, j: usize| largest_difference(&solutions[i], &solutions[j]);
+    let p = observed_order(
+        [sizes[n - 3], sizes[n - 2], sizes[n - 1]],
+        d(n - 3, n - 2),
+        d(n - 2, n - 1),
+    );
+    // Richardson: the finest level's own error is C h^p with
+    // C = d / (h_a^p - h_b^p) from the last pair.
+    let c = d(n - 2, n - 1) / (sizes[n - 2].powf(p) - sizes[n - 1].powf(p));
+    println!("{name}: observed order p = {p:.2}");
+    println!("| level | vs finest (um) | extrapolated error (um) | / sigma |");
+    println!("|---|---|---|---|");
+    let mut first = 0.0;
+    for i in 0..n {
+        let error = c * sizes[i].powf(p);
+        println!(
+            "| {} | {:.2} | {:.2} | {:.3} |",
+            sizes[i],
+            d(i, n - 1) * 1e6,
+            error * 1e6,
+            error / sigma
+        );
+        if i == 0 {
+            first = error;
+        }
+    }
+    first
+}
+
 #[test]
 #[ignore = "minutes: mesh convergence of the 3-D truth"]
 fn discretisation_error_is_below_a_tenth_of_the_marker_noise() {
     let default = Scenario::paper_default();
     let sigma = default.sensors.marker_sigma;
+    let r = default.resolution;
     // Only the final state is compared, so coarse depth steps suffice.
     let step = 0.005;
-    let reference = final_markers(&slab(3, 4, step));
-    println!("| refinement | layers | max marker error (m) | / sigma |");
-    println!("|---|---|---|---|");
-    let mut at_default = f64::INFINITY;
-    for (refinement, layers) in [(1, 2), (1, 4), (2, 2), (2, 4), (3, 2)] {
-        let error = largest_difference(&final_markers(&slab(refinement, layers, step)), &reference);
-        println!(
-            "| {refinement} | {layers} | {error:.3e} | {:.3} |",
-            error / sigma
-        );
-        if (refinement, layers) == (default.resolution.refinement, default.resolution.layers) {
-            at_default = error;
-        }
-    }
+    let refinements = [r.refinement, 2 * r.refinement, 3 * r.refinement];
+    let in_plane: Vec<_> = refinements
+        .iter()
+        .map(|&k| final_markers(&slab(k, r.layers, step)))
+        .collect();
+    let sizes: Vec<f64> = refinements.iter().map(|&k| 1.0 / k as f64).collect();
+    let e_plane = study("in-plane (h / default h)", &sizes, &in_plane, sigma);
+    let layers = [r.layers, 2 * r.layers, 4 * r.layers];
+    let through: Vec<_> = layers
+        .iter()
+        .map(|&l| final_markers(&slab(r.refinement, l, step)))
+        .collect();
+    let sizes: Vec<f64> = layers.iter().map(|&l| r.layers as f64 / l as f64).collect();
+    let e_layers = study("through thickness (h / default h)", &sizes, &through, sigma);
+    let at_default = e_plane + e_layers;
+    println!(
+        "default resolution: {:.2} um ({:.3} sigma)",
+        at_default * 1e6,
+        at_default / sigma
+    );
     assert!(
         at_default < 0.1 * sigma,
         "default resolution error {at_default} vs sigma {sigma}"

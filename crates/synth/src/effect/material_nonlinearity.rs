@@ -320,7 +320,7 @@ impl NeoHookean {
             let step = guard
                 .as_ref()
                 .expect("factorised above")
-                .solve(std::slice::from_ref(&r))
+                .solve(&[&r])
                 .pop()
                 .expect("one solution");
             let mut length = 1.0;
