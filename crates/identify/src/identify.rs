@@ -84,6 +84,7 @@ pub fn identify_from_data(
         element: options.element,
         plane: options.plane,
         refinement: options.refinement,
+        layers: options.slab_layers,
         regions: options.regions.clone(),
     };
     let model = ProbeModel::new(&data.setup, &points, &spec)?;
@@ -214,7 +215,7 @@ pub fn identify_from_data(
         (Vec::new(), None)
     };
 
-    let mesh = model.mesh();
+    let (nodes, elements) = model.mesh_size()?;
     Ok(MaterialFit {
         youngs_modulus,
         poisson_ratio,
@@ -226,10 +227,10 @@ pub fn identify_from_data(
         trials,
         drift,
         model: ModelSummary {
-            element: options.element,
+            element: model.element(),
             plane: options.plane,
-            nodes: mesh.node_count(),
-            elements: mesh.element_count(),
+            nodes,
+            elements,
             load_points: model.load_points().len(),
             frames: observations.frames.len(),
             markers: observations.markers,

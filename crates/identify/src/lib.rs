@@ -13,7 +13,9 @@
 //! where $u$ stacks the measured marker displacements of every frame in
 //! contact, $f$ the probe force of that frame applied at the probe tip's
 //! point of the boundary, $K$ the plane-strain (or plane-stress) stiffness
-//! of equation (4) with the fixed faces imposed, $P$ the interpolation of
+//! of equation (4) with the fixed faces imposed, or that of the 3-D slab of
+//! tetrahedra ([`PlaneModel::Slab`]: markers on the top face, the probe
+//! force spread over the thickness), $P$ the interpolation of
 //! nodal displacements at the markers, and $W = \mathrm{diag}(1/\sigma_i^2)$
 //! the whitening by the marker noise (the paper's unweighted form is
 //! $W = I$; with one stated noise the minimiser is the same).
@@ -58,10 +60,12 @@
 //!
 //! # What it does not do
 //!
-//! It does not track markers (needle-vision), model the 3-D slab, contact
-//! patch, friction, viscoelasticity or large strains (the needle-diagnose
+//! It does not track markers (needle-vision), model the contact patch,
+//! friction, viscoelasticity or large strains (the needle-diagnose
 //! effects), or treat the force as uncertain: the probe force is taken as
-//! exact and only marker noise whitens the residuals. Markers closer than
+//! exact and only marker noise whitens the residuals (a straight line
+//! fitted to the force record around each frame, `force_window`, averages
+//! the sensor's noise and quantisation out). Markers closer than
 //! one marker spacing to the load point are left out, because a point load's
 //! displacement is singular there and depends on the unmodelled contact.
 //!
@@ -77,6 +81,7 @@
 
 mod error;
 mod extract;
+mod fe;
 mod identify;
 mod model;
 mod observe;
@@ -88,9 +93,10 @@ mod result;
 pub use needle_lsq as lsq;
 
 pub use error::IdentifyError;
-pub use extract::{extract_probe_data, sample_at};
+pub use extract::{extract_probe_data, fitted_sample_at, sample_at};
+pub use fe::Response;
 pub use identify::{identify_from_data, identify_material};
-pub use model::{ModelSpec, ProbeModel, Response, project_to_boundary};
+pub use model::{ModelSpec, ProbeModel, project_to_boundary};
 pub use options::{IdentifyOptions, PlaneModel, Regions};
 pub use probe::{MIN_MARKERS, MarkerDisplacement, ProbeData, ProbeFrame, ProbeSetup, ProbeTrial};
 pub use result::{

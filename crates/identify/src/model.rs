@@ -1,35 +1,30 @@
-//! The forward model of a probing experiment: the phantom's top face as a
-//! 2-D finite-element mesh on the marker grid, the fixed faces, the probe
-//! load points on the boundary, and the map from material parameters to
-//! marker displacements per unit probe force,
+//! The forward model of a probing experiment: a finite-element mesh of the
+//! phantom on the marker grid (the top face as a 2-D plane-strain or
+//! plane-stress mesh, or the 3-D slab of tetrahedra with element layers
+//! through the thickness), the fixed faces, the probe load points on the
+//! boundary, and the map from material parameters to marker displacements
+//! per unit probe force,
 //!
 //! $$G_{l,c}(\theta) = H\,K(\theta)^{-1} b_{l,c},$$
 //!
-//! where $b_{l,c}$ is a unit force in direction $c$ at load point $l$
-//! (distributed to the nodes by the shape functions at that point:
-//! `needle-fem`'s consistent point force) and $H$ interpolates nodal displacements at the markers. The
-//! sensitivities follow from differentiating $K U = B$:
+//! where $b_{l,c}$ is a unit force in direction $c$ at load point $l$ and
+//! $H$ interpolates the in-plane nodal displacements at the markers (on the
+//! top face $z = t/2$ of the slab). In the plane models $b_{l,c}$ is a point
+//! force distributed by the shape functions at that point (`needle-fem`'s
+//! consistent point force); in the slab the probe presses the whole
+//! thickness of the front face, so $b_{l,c}$ is a uniform line load of
+//! density $1/t$ along z through the load point, from $z = -t/2$ to $t/2$.
+//! The sensitivities follow from differentiating $K U = B$:
 //! $\partial U/\partial p = -K^{-1}\,(\partial K/\partial p)\,U$.
-//!
-//! The fixed faces are eliminated and the stiffness pattern and its
-//! symbolic Cholesky factorisation are built once (`needle-fem`'s
-//! [`LinearProblem`]); each evaluation assembles values into the same
-//! pattern and refactors numerically, and the sensitivities reuse the
-//! factor of the residual evaluation at the same point.
 
-use std::sync::Mutex;
-
-use faer::sparse::SparseColMat;
-use needle_fem::assemble::{Assembler, multiply};
-use needle_fem::dirichlet::Dirichlet;
 use needle_fem::element::ElementKind;
-use needle_fem::load::add_point_force;
-use needle_fem::locate::{Locator, NodeWeights};
-use needle_fem::material::{Formulation, Materials, Parameter};
-use needle_fem::mesh::{Face, MarkerGrid, Mesh2, RectangleMesh};
-use needle_fem::solve::LinearProblem;
+use needle_fem::load::{LineDensity, add_line_load, add_point_force};
+use needle_fem::locate::Locator;
+use needle_fem::material::{Formulation, Materials};
+use needle_fem::mesh::{Face, MarkerGrid, Mesh, RectangleMesh, SlabMesh};
 
 use crate::error::IdentifyError;
+use crate::fe::{FeSystem, Response};
 use crate::options::{PlaneModel, Regions};
 use crate::probe::ProbeSetup;
 
@@ -41,40 +36,46 @@ const MAX_TIP_OFFSET_FRACTION: f64 = 0.2;
 /// The model choices that shape the mesh.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ModelSpec {
-    /// Element kind (Tri3 or Tri6).
+    /// Element kind: Tri3 or Tri6 for the plane models; for the slab the
+    /// tetrahedron of the same order (Tri3 or Tet4: Tet4; Tri6 or Tet10:
+    /// Tet10).
     pub element: ElementKind,
-    /// Plane strain or plane stress.
+    /// Plane strain, plane stress or the 3-D slab.
     pub plane: PlaneModel,
     /// Mesh lines per marker spacing.
     pub refinement: usize,
+    /// Element layers through the thickness (slab only).
+    pub layers: usize,
     /// Material regions.
     pub regions: Regions,
+}
+
+impl ModelSpec {
+    /// The element the mesh is built with.
+    pub fn mesh_element(&self) -> ElementKind {
+        match (self.plane, self.element) {
+            (PlaneModel::Slab, ElementKind::Tri3 | ElementKind::Tet4) => ElementKind::Tet4,
+            (PlaneModel::Slab, _) => ElementKind::Tet10,
+            (_, kind) => kind,
+        }
+    }
 }
 
 /// The probing forward model (see the module doc).
 #[derive(Debug)]
 pub struct ProbeModel {
-    /// The constrained system with its kept factorisation, and the
-    /// materials it was last factorised at.
-    system: Mutex<(LinearProblem<2>, Option<Materials>)>,
-    mesh: Mesh2,
-    markers: Vec<NodeWeights>,
-    /// Unit loads, `loads[2 l + c]` a unit force along axis `c` at load
-    /// point `l` as a full dof vector.
-    loads: Vec<Vec<f64>>,
+    system: System,
+    element: ElementKind,
     load_points: Vec<[f64; 2]>,
     region_count: usize,
     marker_spacing: f64,
 }
 
-/// The model's response at one set of materials: the unit-load solutions.
-pub struct Response {
-    /// `unit[2 l + c]`: nodal displacements under a unit force along axis
-    /// `c` at load point `l`.
-    unit: Vec<Vec<f64>>,
-    /// `markers[2 l + c]`: marker displacements (interleaved x, y per
-    /// marker) of the same unit load, $G_{l,c}$.
-    pub markers: Vec<Vec<f64>>,
+/// The plane or the slab system.
+#[derive(Debug)]
+enum System {
+    Plane(FeSystem<2>),
+    Slab(FeSystem<3>),
 }
 
 impl ProbeModel {
@@ -90,87 +91,59 @@ impl ProbeModel {
         if let Regions::LayersY { boundaries } = &spec.regions {
             insert_lines(&mut plan.y_lines, boundaries, setup.depth)?;
         }
-        let mut mesh: Mesh2 = plan.build(spec.element)?;
-        let regions = spec.regions.clone();
-        mesh.assign_regions(|c| regions.region_of(c[1]));
-        let region_count = spec.regions.count();
-        if mesh.region_count() != region_count {
-            return Err(IdentifyError::Inconsistent(format!(
-                "options.regions: {region_count} regions requested but the mesh has elements in {} (is every layer inside the phantom?)",
-                mesh.region_count()
-            )));
-        }
-        let formulation = match spec.plane {
-            PlaneModel::Strain => Formulation::PlaneStrain {
-                thickness: setup.thickness,
-            },
-            PlaneModel::Stress => Formulation::PlaneStress {
-                thickness: setup.thickness,
-            },
-        };
-        let locator = Locator::new(&mesh);
-        let weights_at = |what: &str, index: usize, p: [f64; 2]| {
-            locator.weights(p).ok_or_else(|| {
-                IdentifyError::Inconsistent(format!(
-                    "{what} {index} at ({}, {}) m lies outside the mesh",
-                    p[0], p[1]
-                ))
-            })
-        };
-        let markers = setup
-            .markers
-            .iter()
-            .enumerate()
-            .map(|(i, &p)| weights_at("marker", i, p))
-            .collect::<Result<Vec<_>, _>>()?;
-        let mut loads = Vec::with_capacity(2 * load_points.len());
-        for (i, &p) in load_points.iter().enumerate() {
-            for c in 0..2 {
-                let mut force = [0.0; 2];
-                force[c] = 1.0;
-                let mut load = vec![0.0; mesh.dof_count()];
-                add_point_force(&locator, &mut load, p, force).map_err(|_| {
-                    IdentifyError::Inconsistent(format!(
-                        "load point {i} at ({}, {}) m lies outside the mesh",
-                        p[0], p[1]
-                    ))
-                })?;
-                loads.push(load);
+        let element = spec.mesh_element();
+        let system = match spec.plane {
+            PlaneModel::Strain | PlaneModel::Stress => {
+                let formulation = if spec.plane == PlaneModel::Strain {
+                    Formulation::PlaneStrain {
+                        thickness: setup.thickness,
+                    }
+                } else {
+                    Formulation::PlaneStress {
+                        thickness: setup.thickness,
+                    }
+                };
+                let mesh = with_regions(plan.build(element)?, &spec.regions)?;
+                System::Plane(plane_system(setup, load_points, mesh, formulation)?)
             }
-        }
-        let mut dirichlet = Dirichlet::new();
-        for &face in &setup.fixed {
-            dirichlet.fix_nodes(&mesh, &mesh.nodes_on_face(face))?;
-        }
-        let system = LinearProblem::new(
-            Assembler::new(mesh.clone(), formulation)?,
-            Vec::new(),
-            dirichlet,
-        )?;
+            PlaneModel::Slab => {
+                if spec.layers == 0 {
+                    return Err(IdentifyError::InvalidValue {
+                        field: "options.slab_layers",
+                        value: 0.0,
+                        reason: "must be at least 1",
+                    });
+                }
+                let slab = SlabMesh::new(plan, setup.thickness, spec.layers)?;
+                let mesh = with_regions(slab.build(element)?, &spec.regions)?;
+                System::Slab(slab_system(setup, load_points, mesh)?)
+            }
+        };
         Ok(Self {
-            system: Mutex::new((system, None)),
-            mesh,
-            markers,
-            loads,
+            system,
+            element,
             load_points: load_points.to_vec(),
-            region_count,
+            region_count: spec.regions.count(),
             marker_spacing,
         })
     }
 
-    /// The mesh.
-    pub fn mesh(&self) -> &Mesh2 {
-        &self.mesh
+    /// The element of the mesh.
+    pub fn element(&self) -> ElementKind {
+        self.element
+    }
+
+    /// Nodes and elements of the mesh.
+    pub fn mesh_size(&self) -> Result<(usize, usize), IdentifyError> {
+        match &self.system {
+            System::Plane(s) => s.size(),
+            System::Slab(s) => s.size(),
+        }
     }
 
     /// Number of material regions.
     pub fn region_count(&self) -> usize {
         self.region_count
-    }
-
-    /// Number of markers.
-    pub fn marker_count(&self) -> usize {
-        self.markers.len()
     }
 
     /// The load points.
@@ -186,17 +159,10 @@ impl ProbeModel {
     /// Solves for every unit load at `materials` (one numeric Cholesky
     /// factorisation, `2 x load points` right-hand sides).
     pub fn respond(&self, materials: &Materials) -> Result<Response, IdentifyError> {
-        let mut guard = self.system.lock().map_err(|_| poisoned())?;
-        let (system, factored_at) = &mut *guard;
-        factorize(system, factored_at, materials)?;
-        let loads: Vec<&[f64]> = self.loads.iter().map(Vec::as_slice).collect();
-        let unit: Vec<Vec<f64>> = system
-            .solve_many(&loads)?
-            .into_iter()
-            .map(|s| s.displacement)
-            .collect();
-        let markers = unit.iter().map(|u| self.at_markers(u)).collect();
-        Ok(Response { unit, markers })
+        match &self.system {
+            System::Plane(s) => s.respond(materials),
+            System::Slab(s) => s.respond(materials),
+        }
     }
 
     /// Marker-level sensitivities $H\,\partial U/\partial p$ of every unit
@@ -209,83 +175,110 @@ impl ProbeModel {
         response: &Response,
         tied: bool,
     ) -> Result<Vec<Vec<Vec<f64>>>, IdentifyError> {
-        let mut guard = self.system.lock().map_err(|_| poisoned())?;
-        let (system, factored_at) = &mut *guard;
-        factorize(system, factored_at, materials)?;
-        let assembler = system.assembler();
-        let mut out = Vec::with_capacity(self.region_count + 1);
-        if tied {
-            let e = materials.0[0].youngs_modulus();
-            out.push(
-                response
-                    .markers
-                    .iter()
-                    .map(|g| g.iter().map(|x| -x / e).collect())
-                    .collect(),
-            );
-        } else {
-            for r in 0..self.region_count {
-                let derivative =
-                    assembler.stiffness_derivative(materials, Parameter::YoungsModulus, Some(r))?;
-                out.push(self.solution_derivative(system, &derivative, response)?);
-            }
+        match &self.system {
+            System::Plane(s) => s.sensitivities(materials, response, tied),
+            System::Slab(s) => s.sensitivities(materials, response, tied),
         }
-        let derivative =
-            assembler.stiffness_derivative(materials, Parameter::PoissonRatio, None)?;
-        out.push(self.solution_derivative(system, &derivative, response)?);
-        Ok(out)
-    }
-
-    /// $-H K^{-1} (\partial K/\partial p)\,U$ for every unit load, with the
-    /// system factorised at `materials`.
-    fn solution_derivative(
-        &self,
-        system: &LinearProblem<2>,
-        derivative: &SparseColMat<usize, f64>,
-        response: &Response,
-    ) -> Result<Vec<Vec<f64>>, IdentifyError> {
-        let rhs: Vec<Vec<f64>> = response
-            .unit
-            .iter()
-            .map(|u| multiply(derivative, u).into_iter().map(|v| -v).collect())
-            .collect();
-        let rhs: Vec<&[f64]> = rhs.iter().map(Vec::as_slice).collect();
-        Ok(system
-            .solve_many(&rhs)?
-            .into_iter()
-            .map(|s| self.at_markers(&s.displacement))
-            .collect())
-    }
-
-    /// Interpolates a nodal field at the markers (x, y interleaved).
-    fn at_markers(&self, field: &[f64]) -> Vec<f64> {
-        let mut out = vec![0.0; 2 * self.markers.len()];
-        for (m, weights) in self.markers.iter().enumerate() {
-            for &(n, w) in weights {
-                out[2 * m] += w * field[2 * n];
-                out[2 * m + 1] += w * field[2 * n + 1];
-            }
-        }
-        out
     }
 }
 
-/// Factorises `system` at `materials` unless it already is.
-fn factorize(
-    system: &mut LinearProblem<2>,
-    factored_at: &mut Option<Materials>,
-    materials: &Materials,
-) -> Result<(), IdentifyError> {
-    if factored_at.as_ref() != Some(materials) {
-        *factored_at = None;
-        system.factorize(materials)?;
-        *factored_at = Some(materials.clone());
+/// Assigns the regions by element centroid (y) and checks that every
+/// requested region has elements.
+fn with_regions<const D: usize>(
+    mut mesh: Mesh<D>,
+    regions: &Regions,
+) -> Result<Mesh<D>, IdentifyError> {
+    mesh.assign_regions(|c| regions.region_of(c[1]));
+    let requested = regions.count();
+    if mesh.region_count() != requested {
+        return Err(IdentifyError::Inconsistent(format!(
+            "options.regions: {requested} regions requested but the mesh has elements in {} (is every layer inside the phantom?)",
+            mesh.region_count()
+        )));
     }
-    Ok(())
+    Ok(mesh)
 }
 
-fn poisoned() -> IdentifyError {
-    IdentifyError::Factorization("a previous evaluation panicked while holding the system".into())
+fn outside(what: &str, index: usize, p: [f64; 2]) -> IdentifyError {
+    IdentifyError::Inconsistent(format!(
+        "{what} {index} at ({}, {}) m lies outside the mesh",
+        p[0], p[1]
+    ))
+}
+
+/// The plane system: markers interpolated in the plane, unit point forces.
+fn plane_system(
+    setup: &ProbeSetup,
+    load_points: &[[f64; 2]],
+    mesh: Mesh<2>,
+    formulation: Formulation,
+) -> Result<FeSystem<2>, IdentifyError> {
+    let locator = Locator::new(&mesh);
+    let markers = setup
+        .markers
+        .iter()
+        .enumerate()
+        .map(|(i, &p)| locator.weights(p).ok_or_else(|| outside("marker", i, p)))
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut loads = Vec::with_capacity(2 * load_points.len());
+    for (i, &p) in load_points.iter().enumerate() {
+        for c in 0..2 {
+            let mut force = [0.0; 2];
+            force[c] = 1.0;
+            let mut load = vec![0.0; mesh.dof_count()];
+            add_point_force(&locator, &mut load, p, force)
+                .map_err(|_| outside("load point", i, p))?;
+            loads.push(load);
+        }
+    }
+    FeSystem::new(mesh, formulation, &setup.fixed, markers, loads)
+}
+
+/// The slab system: markers on the top face $z = t/2$, each unit load a
+/// uniform line load through the thickness at the load point.
+fn slab_system(
+    setup: &ProbeSetup,
+    load_points: &[[f64; 2]],
+    mesh: Mesh<3>,
+) -> Result<FeSystem<3>, IdentifyError> {
+    let half = 0.5 * setup.thickness;
+    let locator = Locator::new(&mesh);
+    let markers = setup
+        .markers
+        .iter()
+        .enumerate()
+        .map(|(i, &p)| {
+            locator
+                .weights([p[0], p[1], half])
+                .ok_or_else(|| outside("marker", i, p))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut loads = Vec::with_capacity(2 * load_points.len());
+    for (i, &p) in load_points.iter().enumerate() {
+        for c in 0..2 {
+            let mut density = [0.0; 3];
+            density[c] = 1.0 / setup.thickness;
+            let line = LineDensity::Sampled {
+                arclength: vec![0.0, setup.thickness],
+                density: vec![density; 2],
+            };
+            let mut load = vec![0.0; mesh.dof_count()];
+            let total = add_line_load(
+                &locator,
+                &mut load,
+                [p[0], p[1], -half],
+                [p[0], p[1], half],
+                &line,
+            )
+            .map_err(|_| outside("load point", i, p))?;
+            // The quadrature must carry the whole unit force into the mesh.
+            if (total[c] - 1.0).abs() > 1e-9 {
+                return Err(outside("load point", i, p));
+            }
+            loads.push(load);
+        }
+    }
+    FeSystem::new(mesh, Formulation::Solid, &setup.fixed, markers, loads)
 }
 
 /// The point of the phantom's boundary where a probe with its tip at `tip`

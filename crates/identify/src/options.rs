@@ -7,7 +7,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::IdentifyError;
 
-/// The plane idealisation of the phantom's top face.
+/// The kinematics of the model: a plane idealisation of the phantom's top
+/// face, or the 3-D slab.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 pub enum PlaneModel {
     /// Plane strain ($\varepsilon_{zz} = 0$), the paper's model and the default.
@@ -15,6 +16,14 @@ pub enum PlaneModel {
     Strain,
     /// Plane stress ($\sigma_{zz} = 0$), a thin plate.
     Stress,
+    /// The 3-D slab $[0,w]\times[0,d]\times[-t/2,t/2]$ of tetrahedra
+    /// (Tet10 for the default `Tri6` element, Tet4 for `Tri3`) with
+    /// `slab_layers` element layers through the thickness, markers read on
+    /// the top face $z = t/2$ and the probe force spread uniformly over the
+    /// thickness of the face it presses. For data from a thin but 3-D
+    /// phantom, where the plane models misread $\nu$
+    /// (`docs/identification.md`).
+    Slab,
 }
 
 /// How elements are grouped into material regions, each with its own
@@ -58,10 +67,15 @@ impl Regions {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct IdentifyOptions {
     /// Element of the model mesh: `Tri6` (default; does not lock at
-    /// $\nu \to 0.5$) or `Tri3` (the paper's linear triangles).
+    /// $\nu \to 0.5$) or `Tri3` (the paper's linear triangles). With
+    /// [`PlaneModel::Slab`] the tetrahedron of the same order (`Tet10` or
+    /// `Tet4`, which may also be named directly).
     pub element: ElementKind,
-    /// Plane strain (default) or plane stress.
+    /// Plane strain (default), plane stress, or the 3-D slab.
     pub plane: PlaneModel,
+    /// Element layers through the thickness of the slab model (default 2;
+    /// only with [`PlaneModel::Slab`]).
+    pub slab_layers: usize,
     /// Mesh lines per marker spacing (1: the element corners are the
     /// markers, as in the paper's Fig. 8). Default 2: on the paper's
     /// campaign the T6 model's bias in E drops from 0.19% to 0.04%
@@ -87,6 +101,13 @@ pub struct IdentifyOptions {
     /// least this (N). Default: 5 times the stated force noise, or 2% of
     /// the trial's largest force when no noise is stated.
     pub contact_force: Option<f64>,
+    /// Half-width (s) of the window of `tool.csv` samples to which a
+    /// straight line is fitted to read the force and tip at each camera
+    /// frame ([`fitted_sample_at`](crate::fitted_sample_at)), which
+    /// averages out the force sensor's noise and quantisation. `None`
+    /// (default): linear interpolation between the two samples around the
+    /// frame, the raw record.
+    pub force_window: Option<f64>,
     /// Markers closer than this to the load point are left out of the
     /// residuals (m): a point load's displacement is singular there and
     /// the blunt probe's contact patch is not modelled. Default: one marker
@@ -104,6 +125,7 @@ impl Default for IdentifyOptions {
         Self {
             element: ElementKind::Tri6,
             plane: PlaneModel::Strain,
+            slab_layers: 2,
             refinement: 2,
             regions: Regions::Homogeneous,
             start_youngs_modulus: 30e3,
@@ -113,6 +135,7 @@ impl Default for IdentifyOptions {
             scan_points: 24,
             marker_sigma: None,
             contact_force: None,
+            force_window: None,
             exclusion_radius: None,
             per_trial: true,
             lsq: needle_lsq::Options::default(),
@@ -130,14 +153,17 @@ impl IdentifyOptions {
                 reason,
             })
         };
-        if self.element.dimension() != 2 {
+        if self.plane != PlaneModel::Slab && self.element.dimension() != 2 {
             return Err(IdentifyError::Inconsistent(format!(
-                "options.element: the probing model is 2-D, {:?} is a 3-D element",
-                self.element
+                "options.element: the {:?} model is 2-D, {:?} is a 3-D element (use PlaneModel::Slab)",
+                self.plane, self.element
             )));
         }
         if self.refinement == 0 {
             return bad("options.refinement", 0.0, "must be at least 1");
+        }
+        if self.slab_layers == 0 {
+            return bad("options.slab_layers", 0.0, "must be at least 1");
         }
         let (nu_lo, nu_hi) = self.poisson_bounds;
         if !(nu_lo.is_finite() && nu_hi.is_finite() && -1.0 < nu_lo && nu_lo < nu_hi && nu_hi < 0.5)
@@ -180,6 +206,7 @@ impl IdentifyOptions {
         for (field, value) in [
             ("options.marker_sigma", self.marker_sigma),
             ("options.contact_force", self.contact_force),
+            ("options.force_window", self.force_window),
         ] {
             if let Some(v) = value
                 && !(v.is_finite() && v > 0.0)

@@ -8,7 +8,8 @@ use nalgebra::DMatrix;
 use needle_fem::material::Materials;
 use needle_lsq::{EvaluationError, Problem};
 
-use crate::model::{ProbeModel, Response};
+use crate::fe::Response;
+use crate::model::ProbeModel;
 use crate::observe::Observations;
 
 /// Equation (5) with whitened residuals

@@ -208,6 +208,7 @@ fn model_matches_independent_solve_on_the_same_mesh() {
         element: needle_fem::element::ElementKind::Tri6,
         plane: PlaneModel::Strain,
         refinement: 2,
+        layers: 2,
         regions: Regions::Homogeneous,
     };
     let model = ProbeModel::new(&data.setup, &points, &spec).unwrap();
@@ -246,6 +247,7 @@ fn sensitivities_match_finite_differences() {
         element: needle_fem::element::ElementKind::Tri6,
         plane: PlaneModel::Stress,
         refinement: 2,
+        layers: 2,
         regions: Regions::LayersY {
             boundaries: vec![0.025],
         },

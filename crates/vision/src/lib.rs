@@ -86,6 +86,7 @@ mod frame;
 mod interpolate;
 mod rectify;
 mod render;
+mod shift_sampler;
 mod track;
 mod track_frames;
 mod undistort;
