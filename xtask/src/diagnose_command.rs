@@ -7,6 +7,7 @@ use std::path::PathBuf;
 use clap::Args;
 use needle_diagnose::{DiagnoseOptions, ModelSpec, diagnose, write_outputs};
 
+use crate::diagnosis_report::{add_sections, print_ladder};
 use crate::output::OutputFolder;
 use crate::report::Report;
 
@@ -26,6 +27,9 @@ pub struct DiagnoseArgs {
     /// residual is consistent with noise or unexplained.
     #[arg(long)]
     add_recommended: bool,
+    /// At most this many camera frames of each trial enter the fit (0: all).
+    #[arg(long, default_value_t = DiagnoseOptions::default().frames_per_trial)]
+    frames_per_trial: usize,
     /// Output folder (must not exist); default: a new folder under `out/`.
     #[arg(long)]
     out: Option<PathBuf>,
@@ -42,57 +46,15 @@ pub fn run(args: &DiagnoseArgs) -> Result<(), String> {
     let folder = OutputFolder::create(args.out.as_deref(), "diagnose")?;
     let options = DiagnoseOptions {
         add_recommended: args.add_recommended,
+        frames_per_trial: args.frames_per_trial,
         ..DiagnoseOptions::default()
     };
     let result = diagnose(&args.bundle, &model, &options).map_err(|e| e.to_string())?;
     write_outputs(&result, &folder.file("")).map_err(|e| e.to_string())?;
 
-    let header = [
-        "step",
-        "added",
-        "parameters",
-        "rms marker (m)",
-        "rms force (N)",
-        "chi2/dof marker",
-        "chi2/dof force",
-        "verdict",
-    ];
-    let rows: Vec<Vec<String>> = result
-        .ladder
-        .rows
-        .iter()
-        .map(|row| {
-            vec![
-                row.step.to_string(),
-                row.added.clone().unwrap_or_else(|| "(baseline)".into()),
-                row.parameters.to_string(),
-                format!("{:.3e}", row.fit.rms_marker),
-                format!("{:.3e}", row.fit.rms_force),
-                format!("{:.2}", row.fit.chi2_marker),
-                format!("{:.2}", row.fit.chi2_force),
-                format!("{:?}", row.verdict),
-            ]
-        })
-        .collect();
-    println!("{}", header.join(" | "));
-    for row in &rows {
-        println!("{}", row.join(" | "));
-    }
+    print_ladder(&result);
     let mut report = Report::default();
-    report.section(
-        "Diagnosis",
-        &format!(
-            "Bundle {}; final model {:?}; verdict <b>{:?}</b>. Candidates are ranked by a \
-             score test and confirmed by refitting; an effect is named only when its \
-             likelihood-ratio p-value is below {:.2e}.",
-            result.diagnosis.bundle,
-            result.diagnosis.model,
-            result.diagnosis.verdict,
-            result.diagnosis.threshold_p
-        ),
-        &[],
-    );
-    report.table("The error ladder", &header, &rows);
+    add_sections(&mut report, &result, "1.")?;
     folder.write("report.html", &report.to_html("needle diagnosis"))?;
     let finished = folder.finish()?;
     println!(

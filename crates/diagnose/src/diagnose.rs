@@ -13,6 +13,7 @@ use crate::model::{Baseline, Model};
 use crate::observe::{Load, Observations};
 use crate::rank::{Candidate, Ranked, rank_candidates};
 use crate::spec::{DiagnoseOptions, ModelSpec};
+use crate::whiten::Whitening;
 
 /// What the residuals say.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -196,20 +197,25 @@ pub fn diagnose(
     let (marker_sigma, force_sigma) = campaign
         .noise
         .map_or((1.0e-5, 1.0e-2), |n| (n.marker_sigma, n.force_sigma));
-    let obs = Observations::from_campaign(campaign, options.probe_force_samples, force_sigma)?;
-    let forward = Forward::new(&campaign.phantom, &obs.rest, options.refinement)?;
+    let obs = Observations::from_campaign(
+        campaign,
+        options.probe_force_samples,
+        force_sigma,
+        options.frames_per_trial,
+    )?;
+    let forward = Forward::new(
+        &campaign.phantom,
+        &obs.rest,
+        options.refinement,
+        options.slab_refinement,
+    )?;
     let measured = obs.measured();
     let marker_count = obs.marker_count();
-    let flat = |sm: f64, sf: f64| -> Vec<f64> {
-        (0..measured.len())
-            .map(|i| if i < marker_count { sm } else { sf })
-            .collect()
-    };
     let mut context = Context {
-        sigma: flat(marker_sigma, force_sigma),
+        whitening: Whitening::independent(marker_count, marker_sigma, force_sigma),
         forward,
         obs,
-        measured: measured.clone(),
+        measured,
     };
     let start = Baseline {
         youngs_modulus: options.initial_youngs_modulus,
@@ -225,9 +231,12 @@ pub fn diagnose(
             let prediction = context
                 .forward
                 .predict(&current, &first.params, &context.obs)?;
-            for (i, v) in prediction.force_variance.iter().enumerate() {
-                context.sigma[i] = (marker_sigma * marker_sigma + v).sqrt();
-            }
+            context.whitening = Whitening::with_probe_noise(
+                marker_count,
+                marker_sigma,
+                force_sigma,
+                &prediction.probe_responses,
+            );
             NoiseSource::Stated
         }
         None => {
@@ -243,7 +252,7 @@ pub fn diagnose(
             };
             let sm = estimate(fit.rms_marker, m, dof[0], marker_sigma);
             let sf = estimate(fit.rms_force, f, dof[1], force_sigma);
-            context.sigma = flat(sm, sf);
+            context.whitening = Whitening::independent(marker_count, sm, sf);
             NoiseSource::Estimated {
                 marker_sigma: sm,
                 force_sigma: sf,
@@ -329,6 +338,7 @@ fn initial_shaft_density(obs: &Observations) -> f64 {
 /// The verdict rules (see the crate documentation).
 fn verdict(ranked: &[Ranked], fitted: &Fitted, options: &DiagnoseOptions) -> (Verdict, f64) {
     let threshold_p = options.significance / ranked.len().max(1) as f64;
+    let excess = fitted.chi2 - fitted.dof.iter().sum::<f64>();
     let leader = ranked
         .iter()
         .filter(|r| r.candidate.likelihood_ratio_p < threshold_p)
@@ -336,7 +346,8 @@ fn verdict(ranked: &[Ranked], fitted: &Fitted, options: &DiagnoseOptions) -> (Ve
             a.candidate
                 .likelihood_ratio
                 .total_cmp(&b.candidate.likelihood_ratio)
-        });
+        })
+        .filter(|r| r.candidate.likelihood_ratio >= options.min_explained * excess);
     if let Some(leader) = leader {
         return (
             Verdict::MissingEffect(leader.candidate.effect.clone()),

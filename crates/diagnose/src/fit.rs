@@ -1,9 +1,8 @@
 //! Fit a model to all trials jointly and measure its misfit per channel.
 //!
-//! Residuals are whitened, $r_i = (\text{model}_i(p) - y_i)/\sigma_i$, with
-//! $\sigma_i^2 = \sigma_m^2 + \sigma_{F,\text{probe}}^2 (g_x^2 + g_y^2)_i$
-//! for marker coordinates (the stated marker noise plus the probe force
-//! noise carried through the unit responses) and $\sigma_F$ for forces.
+//! Residuals are model minus data, whitened by the noise covariance of
+//! `whiten` (independent marker and force noise, plus each probe frame's
+//! force noise carried to its markers through the unit responses).
 
 use needle_lsq::{LevenbergMarquardt, Problem};
 use serde::{Deserialize, Serialize};
@@ -12,6 +11,7 @@ use crate::error::DiagnoseError;
 use crate::forward::Forward;
 use crate::model::Model;
 use crate::observe::Observations;
+use crate::whiten::Whitening;
 
 /// Misfit of a fitted model, per channel. A channel without data has `NaN`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -31,7 +31,21 @@ pub(crate) struct Context {
     pub forward: Forward,
     pub obs: Observations,
     pub measured: Vec<f64>,
-    pub sigma: Vec<f64>,
+    pub whitening: Whitening,
+}
+
+impl Context {
+    /// Whitened residuals of the model at `p`.
+    pub fn whitened(&self, model: &Model, p: &[f64]) -> Result<Vec<f64>, DiagnoseError> {
+        let prediction = self.forward.predict(model, p, &self.obs)?;
+        let raw: Vec<f64> = prediction
+            .values
+            .iter()
+            .zip(&self.measured)
+            .map(|(m, y)| m - y)
+            .collect();
+        Ok(self.whitening.apply(&raw))
+    }
 }
 
 /// A fitted model.
@@ -66,13 +80,8 @@ impl Problem for FitProblem<'_> {
         params: &[f64],
         out: &mut [f64],
     ) -> Result<(), needle_lsq::EvaluationError> {
-        let prediction = self
-            .context
-            .forward
-            .predict(self.model, params, &self.context.obs)?;
-        for (i, o) in out.iter_mut().enumerate() {
-            *o = (prediction.values[i] - self.context.measured[i]) / self.context.sigma[i];
-        }
+        let whitened = self.context.whitened(self.model, params)?;
+        out.copy_from_slice(&whitened);
         Ok(())
     }
 }
@@ -118,16 +127,14 @@ pub(crate) fn fit_model(
 pub(crate) fn misfit(context: &Context, residuals: &[f64], free: usize) -> (Fit, f64, [f64; 2]) {
     let m = context.obs.marker_count();
     let total = residuals.len() as f64;
+    let whitened = context.whitening.apply(residuals);
     let channel = |range: std::ops::Range<usize>| -> (f64, f64, f64) {
         let n = range.len() as f64;
         if range.is_empty() {
             return (f64::NAN, f64::NAN, 0.0);
         }
         let sum2: f64 = residuals[range.clone()].iter().map(|r| r * r).sum();
-        let chi2: f64 = range
-            .clone()
-            .map(|i| (residuals[i] / context.sigma[i]).powi(2))
-            .sum();
+        let chi2: f64 = whitened[range.clone()].iter().map(|r| r * r).sum();
         let dof = (n - free as f64 * n / total).max(1.0);
         ((sum2 / n).sqrt(), chi2, dof)
     };

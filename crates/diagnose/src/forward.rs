@@ -1,64 +1,61 @@
 //! The forward model: from a parameter vector to the predicted marker
 //! displacements at every frame and the needle base force at every sample.
 //!
-//! The slab's top face is a plane-strain T6 mesh with a node on every
-//! marker (when the markers form a grid), fixed faces from the manifest.
+//! The baseline body is a plane-strain T6 mesh of the slab with a node on
+//! every marker (when the markers form a grid), fixed faces from the
+//! manifest. The `out_of_plane` effect adds a Tet10 slab through the
+//! thickness (see `body`) and blends the two predictions,
+//! $u = (1 - w)\,u_\text{plane} + w\,u_\text{slab}$ with its weight $w$.
 //! Each element has its own material region so that effects can set any
 //! modulus field $E_e = E \prod_k f_k(\text{centroid}_e, \text{trial})$.
 //! Trials that share a material field and supports share one Cholesky
-//! factorisation, kept in a small cache keyed by the exact values, so a
-//! finite-difference Jacobian column that changes only a load parameter
-//! costs triangular solves and no factorisation. All frames of those trials
-//! are solved as one block of right-hand sides.
+//! factorisation per body (fields differing by a uniform factor too), so a
+//! finite-difference Jacobian column that changes only a load parameter or
+//! $E$ costs triangular solves and no factorisation. All frames of those
+//! trials are solved as one block of right-hand sides.
 //!
 //! - Probe frame: the measured force $F$ at the tip, $u = F_x g_x + F_y g_y$
 //!   with $g$ the responses to unit forces (kept to propagate the force
-//!   noise into the marker variance).
+//!   noise into the marker covariance, see `whiten`).
 //! - Needle frame: a line load of density $q(s)\,\hat d$ from the entry
 //!   point to the tip, $q(s) = q_0 + \sum_k \Delta q_k(s)$ (effects).
 //! - Needle force sample: $F = \hat d \int_0^L q(s)\,ds$.
 //! - Markers: $p = x_\text{rest} + H u$, mapped through every effect's
 //!   measurement map, minus $x_\text{rest}$.
 
-use std::sync::{Arc, Mutex};
+use needle_fem::{ElementKind, Face, Formulation, MarkerGrid, RectangleMesh, SlabMesh};
 
-use needle_fem::load::{add_line_load, add_point_force};
-use needle_fem::{
-    Assembler, Dirichlet, ElementKind, Face, Formulation, LineDensity, LinearProblem, Locator,
-    MarkerGrid, Material, Materials, Mesh, RectangleMesh, Support,
-};
-
+use crate::body::Body;
 use crate::effect::{Geometry, ShaftPoint, SupportSpec, TrialContext};
 use crate::error::DiagnoseError;
 use crate::model::Model;
-use crate::observe::{Load, Observations, Shaft};
+use crate::observe::{Load, Observations};
+use crate::whiten::ProbeResponse;
 
-/// Factorisations kept (one per distinct material field and support).
-const CACHE_SIZE: usize = 48;
-
-/// Identity of a factorisation: the exact bits of every element modulus,
-/// Poisson's ratio and the supports.
-#[derive(Debug, Clone, PartialEq, Eq)]
-struct Key(Vec<u64>);
+/// Element layers through the thickness of the `out_of_plane` slab.
+const SLAB_LAYERS: usize = 2;
 
 /// What the forward model predicts, in residual order.
 pub(crate) struct Prediction {
     pub values: Vec<f64>,
-    /// Per marker residual: the variance that the probe force noise adds
-    /// (zero for needle frames).
-    pub force_variance: Vec<f64>,
+    /// Every probe frame's unit responses, for the covariance of its
+    /// force noise (see `whiten`).
+    pub probe_responses: Vec<ProbeResponse>,
+}
+
+/// One right-hand side of a group of frames.
+#[derive(Debug, Clone, Copy)]
+enum Column {
+    /// Unit force along `axis` at a probe tip.
+    Probe { tip: [f64; 2], axis: usize },
+    /// The needle of frame `frame`.
+    Needle { frame: usize },
 }
 
 pub(crate) struct Forward {
     pub geometry: Geometry,
-    formulation: Formulation,
-    mesh: Mesh<2>,
-    element_y: Vec<[f64; 2]>,
-    centroids: Vec<[f64; 2]>,
-    marker_weights: Vec<Vec<(usize, f64)>>,
-    fixed_faces: Vec<Face>,
-    rigid: LinearProblem<2>,
-    cache: Mutex<Vec<(Key, Arc<LinearProblem<2>>)>>,
+    plane: Body<2>,
+    slab: Body<3>,
 }
 
 fn fem_face(face: needle_data::Face) -> Face {
@@ -78,67 +75,64 @@ fn distinct(values: impl Iterator<Item = f64>, tolerance: f64) -> Vec<f64> {
     v
 }
 
+/// The plan of a rectangle mesh with a node line through every marker when
+/// the markers form a grid, else a uniform mesh of about the marker
+/// spacing; elements `refinement` times smaller.
+fn plan(
+    width: f64,
+    depth: f64,
+    rest: &[[f64; 2]],
+    refinement: usize,
+) -> Result<RectangleMesh, DiagnoseError> {
+    let tolerance = 1e-9 * width.max(depth);
+    let xs = distinct(rest.iter().map(|p| p[0]), tolerance);
+    let ys = distinct(rest.iter().map(|p| p[1]), tolerance);
+    let inside = |v: &[f64], extent: f64| v.iter().all(|&x| x > 0.0 && x < extent);
+    Ok(
+        if xs.len() * ys.len() == rest.len() && inside(&xs, width) && inside(&ys, depth) {
+            RectangleMesh::with_markers(width, depth, &MarkerGrid { x: xs, y: ys }, refinement)?
+        } else {
+            let per_side = ((rest.len() as f64).sqrt().ceil() as usize + 1).max(4);
+            RectangleMesh::uniform(width, depth, per_side * refinement, per_side * refinement)?
+        },
+    )
+}
+
 impl Forward {
+    /// The bodies for `phantom` with markers at `rest`: the plane model
+    /// with elements `refinement` times smaller than the marker spacing,
+    /// the slab `slab_refinement` times.
     pub fn new(
         phantom: &needle_data::Phantom,
         rest: &[[f64; 2]],
         refinement: usize,
+        slab_refinement: usize,
     ) -> Result<Self, DiagnoseError> {
-        let (width, depth) = (phantom.width, phantom.depth);
-        let tolerance = 1e-9 * width.max(depth);
-        let xs = distinct(rest.iter().map(|p| p[0]), tolerance);
-        let ys = distinct(rest.iter().map(|p| p[1]), tolerance);
-        let inside = |v: &[f64], extent: f64| v.iter().all(|&x| x > 0.0 && x < extent);
-        let plan = if xs.len() * ys.len() == rest.len() && inside(&xs, width) && inside(&ys, depth)
-        {
-            RectangleMesh::with_markers(width, depth, &MarkerGrid { x: xs, y: ys }, refinement)?
-        } else {
-            // Markers off a grid: a uniform mesh of about the marker spacing.
-            let per_side = ((rest.len() as f64).sqrt().ceil() as usize + 1).max(4);
-            RectangleMesh::uniform(width, depth, per_side * refinement, per_side * refinement)?
-        };
-        let shared = plan.build(ElementKind::Tri6)?;
-        let element_count = shared.element_count();
-        let mesh = Mesh::new(
-            shared.kind(),
-            shared.nodes().to_vec(),
-            shared.connectivity().to_vec(),
-            (0..element_count).collect(),
+        let (width, depth, thickness) = (phantom.width, phantom.depth, phantom.thickness);
+        let fixed: Vec<Face> = phantom.fixed.iter().map(|&f| fem_face(f)).collect();
+        let plane = Body::new(
+            plan(width, depth, rest, refinement)?.build(ElementKind::Tri6)?,
+            Formulation::PlaneStrain { thickness },
+            thickness,
+            fixed.clone(),
+            rest,
         )?;
-        let element_y = (0..element_count)
-            .map(|e| {
-                let ys = mesh.element(e).iter().map(|&n| mesh.node(n)[1]);
-                let lo = ys.clone().fold(f64::INFINITY, f64::min);
-                let hi = ys.fold(f64::NEG_INFINITY, f64::max);
-                [lo, hi]
-            })
-            .collect();
-        let centroids = (0..element_count).map(|e| mesh.centroid(e)).collect();
-        let locator = Locator::new(&mesh);
-        let marker_weights = rest
-            .iter()
-            .enumerate()
-            .map(|(index, &p)| {
-                locator
-                    .weights(p)
-                    .ok_or_else(|| needle_fem::FemError::PointOutsideMesh {
-                        index,
-                        coordinates: p.to_vec(),
-                    })
-            })
-            .collect::<Result<Vec<_>, _>>()?;
-        let formulation = Formulation::PlaneStrain {
-            thickness: phantom.thickness,
-        };
-        let fixed_faces: Vec<Face> = phantom.fixed.iter().map(|&f| fem_face(f)).collect();
-        let rigid = LinearProblem::new(
-            Assembler::new(mesh.clone(), formulation)?,
-            vec![],
-            Self::fixed_dirichlet(&mesh, &fixed_faces),
+        let slab = Body::new(
+            SlabMesh::new(
+                plan(width, depth, rest, slab_refinement)?,
+                thickness,
+                SLAB_LAYERS,
+            )?
+            .build(ElementKind::Tet10)?,
+            Formulation::Solid,
+            thickness,
+            fixed,
+            rest,
         )?;
+        let n = rest.len().max(1) as f64;
         let centre = [
-            rest.iter().map(|p| p[0]).sum::<f64>() / rest.len().max(1) as f64,
-            rest.iter().map(|p| p[1]).sum::<f64>() / rest.len().max(1) as f64,
+            rest.iter().map(|p| p[0]).sum::<f64>() / n,
+            rest.iter().map(|p| p[1]).sum::<f64>() / n,
         ];
         let radius = rest
             .iter()
@@ -148,104 +142,27 @@ impl Forward {
             geometry: Geometry {
                 width,
                 depth,
-                thickness: phantom.thickness,
+                thickness,
                 image_centre: centre,
                 image_radius: if radius > 0.0 { radius } else { 0.5 * width },
             },
-            formulation,
-            mesh,
-            element_y,
-            centroids,
-            marker_weights,
-            fixed_faces,
-            rigid,
-            cache: Mutex::new(Vec::new()),
+            plane,
+            slab,
         })
     }
 
-    fn fixed_dirichlet(mesh: &Mesh<2>, faces: &[Face]) -> Dirichlet {
-        let mut dirichlet = Dirichlet::new();
-        for &face in faces {
-            for (dof, value) in Dirichlet::fixed_face(mesh, face).iter() {
-                // Values are zero and dofs valid: setting cannot fail.
-                let _ = dirichlet.set(dof, value);
-            }
-        }
-        dirichlet
-    }
-
-    /// The factorised problem for a material field and supports.
-    fn factorized(
-        &self,
-        moduli: &[f64],
-        poisson_ratio: f64,
-        supports: SupportSpec,
-    ) -> Result<Arc<LinearProblem<2>>, DiagnoseError> {
-        let mut bits: Vec<u64> = moduli.iter().map(|e| e.to_bits()).collect();
-        bits.push(poisson_ratio.to_bits());
-        bits.push(supports.fixed_face_compliance.to_bits());
-        bits.push(supports.foundation.to_bits());
-        let key = Key(bits);
-        if let Some((_, p)) = self
-            .cache
-            .lock()
-            .expect("cache lock")
-            .iter()
-            .find(|(k, _)| *k == key)
-        {
-            return Ok(Arc::clone(p));
-        }
-        let materials = Materials(
-            moduli
-                .iter()
-                .enumerate()
-                .map(|(e, &m)| Material::for_region(e, m, poisson_ratio))
-                .collect::<Result<_, _>>()?,
-        );
-        let mut problem = if supports.fixed_face_compliance <= 0.0 && supports.foundation <= 0.0 {
-            self.rigid.clone()
-        } else {
-            let mut springs = Vec::new();
-            let dirichlet = if supports.fixed_face_compliance > 0.0 {
-                let k = 1.0 / supports.fixed_face_compliance;
-                for &face in &self.fixed_faces {
-                    springs.push(Support::Boundary {
-                        facets: self.mesh.facets_on_face(face),
-                        stiffness: [k, k],
-                    });
-                }
-                Dirichlet::new()
-            } else {
-                Self::fixed_dirichlet(&self.mesh, &self.fixed_faces)
-            };
-            if supports.foundation > 0.0 {
-                springs.push(Support::Foundation {
-                    stiffness: [supports.foundation; 2],
-                });
-            }
-            LinearProblem::new(
-                Assembler::new(self.mesh.clone(), self.formulation)?,
-                springs,
-                dirichlet,
-            )?
-        };
-        problem.factorize(&materials)?;
-        let problem = Arc::new(problem);
-        let mut cache = self.cache.lock().expect("cache lock");
-        if cache.len() >= CACHE_SIZE {
-            cache.remove(0);
-        }
-        cache.push((key, Arc::clone(&problem)));
-        Ok(problem)
-    }
-
-    /// Element moduli of a trial.
-    fn moduli(&self, model: &Model, p: &[f64], trial: &TrialContext) -> Vec<f64> {
+    /// Element moduli of a trial on `body`.
+    fn moduli<const D: usize>(
+        body: &Body<D>,
+        model: &Model,
+        p: &[f64],
+        trial: &TrialContext,
+    ) -> Vec<f64> {
         let e0 = model.baseline(p).youngs_modulus;
-        (0..self.centroids.len())
+        (0..body.centroids.len())
             .map(|e| {
                 model.effects_with(p).fold(e0, |acc, (effect, own)| {
-                    acc * effect.stiffness_factor(own, trial, self.centroids[e], self.element_y[e])
+                    acc * effect.stiffness_factor(own, trial, body.centroids[e], body.element_y[e])
                 })
             })
             .collect()
@@ -302,6 +219,79 @@ impl Forward {
         total
     }
 
+    /// The in-plane displacement of every marker under every column on
+    /// `body`, times `weight`, added to `out[column][marker]`.
+    #[allow(clippy::too_many_arguments)]
+    fn add_columns<const D: usize>(
+        &self,
+        body: &Body<D>,
+        weight: f64,
+        model: &Model,
+        p: &[f64],
+        obs: &Observations,
+        trial: usize,
+        supports: SupportSpec,
+        columns: &[Column],
+        out: &mut [Vec<[f64; 2]>],
+    ) -> Result<(), DiagnoseError> {
+        let context = &obs.trials[trial];
+        let moduli = Self::moduli(body, model, p, context);
+        let factorized = body.factorized(&moduli, model.baseline(p).poisson_ratio, supports)?;
+        let locator = body.locator();
+        let mut needles = Vec::new();
+        let mut needle_columns = Vec::new();
+        for (k, column) in columns.iter().enumerate() {
+            match *column {
+                // Both axes come together from one tip (x first).
+                Column::Probe { tip, axis: 0 } => {
+                    let responses = body.probe_responses(&locator, &factorized, tip)?;
+                    for (axis, response) in responses.iter().enumerate() {
+                        for (value, u) in out[k + axis].iter_mut().zip(response) {
+                            value[0] += weight * u[0];
+                            value[1] += weight * u[1];
+                        }
+                    }
+                }
+                Column::Probe { .. } => {}
+                Column::Needle { frame } => {
+                    let Load::Needle(shaft) = obs.frames[frame].load else {
+                        unreachable!("needle columns are made from needle frames")
+                    };
+                    let frame_trial = &obs.trials[obs.frames[frame].trial];
+                    let (length, direction) = (shaft.length, shaft.direction);
+                    let density = move |s: f64| -> [f64; 2] {
+                        let q = self.density(model, p, frame_trial, ShaftPoint { s, length });
+                        [q * direction[0], q * direction[1]]
+                    };
+                    let tip = [
+                        shaft.entry[0] + length * direction[0],
+                        shaft.entry[1] + length * direction[1],
+                    ];
+                    needles.push(body.needle_load(
+                        &locator,
+                        shaft.entry,
+                        tip,
+                        &density,
+                        self.breakpoints(model, p, length),
+                    )?);
+                    needle_columns.push(k);
+                }
+            }
+        }
+        if needles.is_empty() {
+            return Ok(());
+        }
+        let refs: Vec<&[f64]> = needles.iter().map(|l| l.as_slice()).collect();
+        let solutions = factorized.entry.problem.displacements_many(&refs)?;
+        for (u, &k) in solutions.iter().zip(&needle_columns) {
+            for (value, d) in out[k].iter_mut().zip(body.markers(u, factorized.scale)) {
+                value[0] += weight * d[0];
+                value[1] += weight * d[1];
+            }
+        }
+        Ok(())
+    }
+
     /// Predicts every observation at parameters `p`.
     pub fn predict(
         &self,
@@ -309,27 +299,27 @@ impl Forward {
         p: &[f64],
         obs: &Observations,
     ) -> Result<Prediction, DiagnoseError> {
-        let baseline = model.baseline(p);
         let mut supports = SupportSpec::default();
+        let mut slab_weight = 0.0;
         for (effect, own) in model.effects_with(p) {
             effect.supports(own, &mut supports);
+            slab_weight += effect.slab_weight(own);
         }
+        let plane_weight = 1.0 - slab_weight;
         let marker_count = obs.marker_count();
         let mut values = vec![0.0; marker_count + obs.force_count()];
-        let mut force_variance = vec![0.0; marker_count];
+        let mut probe_responses = Vec::new();
         let mut frame_offset = Vec::with_capacity(obs.frames.len());
         let mut offset = 0;
         for frame in &obs.frames {
             frame_offset.push(offset);
             offset += 2 * frame.markers.len();
         }
-        let locator = Locator::new(&self.mesh);
-        let dofs = self.mesh.dof_count();
-        // Group trials by material field.
+        // Group trials by material field (the plane body's stands for both).
         let moduli: Vec<Vec<f64>> = obs
             .trials
             .iter()
-            .map(|t| self.moduli(model, p, t))
+            .map(|t| Self::moduli(&self.plane, model, p, t))
             .collect();
         let mut done = vec![false; obs.trials.len()];
         for first in 0..obs.trials.len() {
@@ -345,85 +335,81 @@ impl Forward {
             let frames: Vec<usize> = (0..obs.frames.len())
                 .filter(|&f| group.contains(&obs.frames[f].trial))
                 .collect();
-            if frames.is_empty() {
-                continue;
-            }
-            let problem = self.factorized(&moduli[first], baseline.poisson_ratio, supports)?;
-            let mut loads: Vec<Vec<f64>> = Vec::new();
-            let mut columns: Vec<(usize, usize)> = Vec::new(); // (first column, count)
+            let mut columns = Vec::new();
+            let mut first_column = Vec::with_capacity(frames.len());
             for &f in &frames {
-                let frame = &obs.frames[f];
-                let start = loads.len();
-                match frame.load {
+                first_column.push(columns.len());
+                match obs.frames[f].load {
                     Load::Free => {}
                     Load::Probe { tip, .. } => {
-                        let point = [
+                        let tip = [
                             tip[0].clamp(0.0, self.geometry.width),
                             tip[1].clamp(0.0, self.geometry.depth),
                         ];
-                        for axis in 0..2 {
-                            let mut load = vec![0.0; dofs];
-                            let mut unit = [0.0; 2];
-                            unit[axis] = 1.0;
-                            add_point_force(&locator, &mut load, point, unit)?;
-                            loads.push(load);
-                        }
+                        columns.push(Column::Probe { tip, axis: 0 });
+                        columns.push(Column::Probe { tip, axis: 1 });
                     }
-                    Load::Needle(shaft) => {
-                        loads.push(self.needle_load(
-                            model,
-                            p,
-                            &obs.trials[frame.trial],
-                            &shaft,
-                            &locator,
-                        )?);
-                    }
+                    Load::Needle(_) => columns.push(Column::Needle { frame: f }),
                 }
-                columns.push((start, loads.len() - start));
             }
-            let refs: Vec<&[f64]> = loads.iter().map(|l| l.as_slice()).collect();
-            let solutions = if refs.is_empty() {
-                Vec::new()
-            } else {
-                problem.solve_many(&refs)?
-            };
+            if columns.is_empty() {
+                continue;
+            }
+            let mut displacement = vec![vec![[0.0; 2]; obs.rest.len()]; columns.len()];
+            if plane_weight != 0.0 {
+                self.add_columns(
+                    &self.plane,
+                    plane_weight,
+                    model,
+                    p,
+                    obs,
+                    first,
+                    supports,
+                    &columns,
+                    &mut displacement,
+                )?;
+            }
+            if slab_weight != 0.0 {
+                self.add_columns(
+                    &self.slab,
+                    slab_weight,
+                    model,
+                    p,
+                    obs,
+                    first,
+                    supports,
+                    &columns,
+                    &mut displacement,
+                )?;
+            }
             for (k, &f) in frames.iter().enumerate() {
                 let frame = &obs.frames[f];
-                let (start, count) = columns[k];
-                let at = |column: usize, marker: usize| -> [f64; 2] {
-                    let u = &solutions[column].displacement;
-                    let mut v = [0.0; 2];
-                    for &(n, w) in &self.marker_weights[marker] {
-                        v[0] += w * u[2 * n];
-                        v[1] += w * u[2 * n + 1];
-                    }
-                    v
+                let start = first_column[k];
+                let mut response = match frame.load {
+                    Load::Probe { force_sigma, .. } => Some(ProbeResponse {
+                        start: frame_offset[f],
+                        unit_x: Vec::with_capacity(2 * frame.markers.len()),
+                        unit_y: Vec::with_capacity(2 * frame.markers.len()),
+                        force_sigma,
+                    }),
+                    _ => None,
                 };
                 for (j, &(m, _)) in frame.markers.iter().enumerate() {
-                    let (u, variance) = match (frame.load, count) {
-                        (
-                            Load::Probe {
-                                force, force_sigma, ..
-                            },
-                            2,
-                        ) => {
-                            let gx = at(start, m);
-                            let gy = at(start + 1, m);
-                            let u = [
+                    let u = match frame.load {
+                        Load::Probe { force, .. } => {
+                            let gx = displacement[start][m];
+                            let gy = displacement[start + 1][m];
+                            if let Some(r) = response.as_mut() {
+                                r.unit_x.extend_from_slice(&gx);
+                                r.unit_y.extend_from_slice(&gy);
+                            }
+                            [
                                 force[0] * gx[0] + force[1] * gy[0],
                                 force[0] * gx[1] + force[1] * gy[1],
-                            ];
-                            let s2 = force_sigma * force_sigma;
-                            (
-                                u,
-                                [
-                                    s2 * (gx[0].powi(2) + gy[0].powi(2)),
-                                    s2 * (gx[1].powi(2) + gy[1].powi(2)),
-                                ],
-                            )
+                            ]
                         }
-                        (Load::Needle(_), 1) => (at(start, m), [0.0; 2]),
-                        _ => ([0.0; 2], [0.0; 2]),
+                        Load::Needle(_) => displacement[start][m],
+                        Load::Free => [0.0; 2],
                     };
                     let rest = obs.rest[m];
                     let mut position = [rest[0] + u[0], rest[1] + u[1]];
@@ -433,9 +419,8 @@ impl Forward {
                     let slot = frame_offset[f] + 2 * j;
                     values[slot] = position[0] - rest[0];
                     values[slot + 1] = position[1] - rest[1];
-                    force_variance[slot] = variance[0];
-                    force_variance[slot + 1] = variance[1];
                 }
+                probe_responses.extend(response);
             }
         }
         for (k, sample) in obs.forces.iter().enumerate() {
@@ -445,42 +430,11 @@ impl Forward {
                 values[marker_count + 2 * k + 1] = total * shaft.direction[1];
             }
         }
+        probe_responses.sort_by_key(|r| r.start);
         Ok(Prediction {
             values,
-            force_variance,
+            probe_responses,
         })
-    }
-
-    fn needle_load(
-        &self,
-        model: &Model,
-        p: &[f64],
-        trial: &TrialContext,
-        shaft: &Shaft,
-        locator: &Locator<'_, 2>,
-    ) -> Result<Vec<f64>, DiagnoseError> {
-        let length = shaft.length;
-        let direction = shaft.direction;
-        let density = move |s: f64| -> [f64; 2] {
-            let q = self.density(model, p, trial, ShaftPoint { s, length });
-            [q * direction[0], q * direction[1]]
-        };
-        let tip = [
-            shaft.entry[0] + length * direction[0],
-            shaft.entry[1] + length * direction[1],
-        ];
-        let mut load = vec![0.0; self.mesh.dof_count()];
-        add_line_load(
-            locator,
-            &mut load,
-            shaft.entry,
-            tip,
-            &LineDensity::Function {
-                density: &density,
-                breakpoints: self.breakpoints(model, p, length),
-            },
-        )?;
-        Ok(load)
     }
 }
 
@@ -547,7 +501,7 @@ mod tests {
                 .push_frame(0, 0.0, frame.clone())
                 .unwrap();
         }
-        Observations::from_campaign(&builder.finish(), 1, 0.005).unwrap()
+        Observations::from_campaign(&builder.finish(), 1, 0.005, 0).unwrap()
     }
 
     /// The observations of [`observations`] on the paper's phantom, its
@@ -560,7 +514,7 @@ mod tests {
             thickness: 0.0075,
             fixed: vec![needle_data::Face::Back],
         };
-        let forward = Forward::new(&phantom, &obs.rest, 1).unwrap();
+        let forward = Forward::new(&phantom, &obs.rest, 1, 1).unwrap();
         let start = Baseline {
             youngs_modulus: 25.0e3,
             poisson_ratio: 0.45,
@@ -629,5 +583,37 @@ mod tests {
         let total = 10.0 * length + 0.05;
         assert!((values[m] - total * -(0.1f64.sin())).abs() < 1e-12);
         assert!((values[m + 1] - total * 0.1f64.cos()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn slab_weight_blends_the_plane_and_the_slab_linearly() {
+        let (obs, forward, start) = paper_forward();
+        let model = Model::new(
+            &ModelSpec::from_ids(&["out_of_plane"]).unwrap(),
+            &forward.geometry,
+            start,
+        )
+        .unwrap();
+        // Marker values only: the base force does not depend on the kinematics.
+        let at = |w: f64| {
+            let mut values = forward
+                .predict(&model, &[25.0e3, 0.45, 10.0, w], &obs)
+                .unwrap()
+                .values;
+            values.truncate(obs.marker_count());
+            values
+        };
+        let (plane, slab, half) = (at(0.0), at(1.0), at(0.5));
+        let largest = slab.iter().map(|v| v.abs()).fold(0.0, f64::max);
+        // The slab's top face moves differently from the plane model.
+        let gap = plane
+            .iter()
+            .zip(&slab)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(gap > 0.05 * largest, "gap {gap} of {largest}");
+        for ((a, b), h) in plane.iter().zip(&slab).zip(&half) {
+            assert!((0.5 * (a + b) - h).abs() <= 1e-12 * largest.max(1e-12));
+        }
     }
 }

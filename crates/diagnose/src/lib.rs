@@ -24,16 +24,20 @@
 //! the inserted needle, whose integral is the predicted base force.
 //! Parameters: $E$, $\nu$, $q$. Every [`effect::Effect`] adds parameters
 //! and changes one part: the modulus field, the supports, the shaft
-//! density, or the measurement map (see [`effect`] and
-//! `docs/adding-an-effect.md`). Details in the `forward` module.
+//! density, the kinematics (`out_of_plane` blends in a Tet10 slab through
+//! the thickness), or the measurement map (see [`effect`] and
+//! `docs/adding-an-effect.md`). Details in the `forward` and `body`
+//! modules.
 //!
 //! ## The statistics
 //!
-//! Residuals are whitened by the stated noise (marker $\sigma_m$, force
-//! $\sigma_F$; the probe force noise, averaged over the nearest samples, is
-//! carried to the markers through the unit responses). If the bundle states
-//! no noise, each channel's $\sigma$ is estimated from the first fit,
-//! $\hat\sigma^2 = \sum r^2 / \text{dof}$, and the result says so
+//! Residuals are whitened by the stated noise: marker $\sigma_m$ and force
+//! $\sigma_F$, and for each probe frame the force noise of the measured
+//! probe force (averaged over the nearest samples), which moves all markers
+//! of the frame together: that frame is whitened with its full covariance
+//! $\sigma_m^2 I + s^2 (g_x g_x^T + g_y g_y^T)$ (see `whiten`). If the
+//! bundle states no noise, each channel's $\sigma$ is estimated from the
+//! first fit, $\hat\sigma^2 = \sum r^2 / \text{dof}$, and the result says so
 //! ([`NoiseSource::Estimated`]).
 //!
 //! - **Chi-square per dof** of a channel $c$ with $n_c$ residuals:
@@ -57,30 +61,25 @@
 //! model explains is at most $\alpha$.
 //!
 //! - `MissingEffect(id)`: the significant candidate with the largest
-//!   $\Lambda$ (the one that explains most of the residual).
+//!   $\Lambda$ (the one that explains most of the residual), provided it
+//!   explains at least a fraction `min_explained` (default 0.2) of the
+//!   excess misfit, $\Lambda \ge f\,(\chi^2 - \nu)$: a candidate that
+//!   soaks up only a sliver of a large structured residual (a stiff
+//!   inclusion partly mimicked by a per-trial effect) is not named.
 //! - `ConsistentWithNoise`: no candidate significant, and every channel has
 //!   $\chi^2/\nu \le 1 + z\sqrt{2/\nu}$ ($z$ = `chi2_spread`, default 3).
-//! - `Unexplained`: no candidate significant but some channel misfits
-//!   beyond that: structured residual that no catalog effect explains (see
-//!   the residual tables).
+//! - `Unexplained`: no candidate named but some channel misfits beyond
+//!   that: structured residual that no catalog effect explains (see the
+//!   residual tables).
 //!
 //! ## What it does not do
 //!
-//! No 3-D slab (`out_of_plane`) and no hyperelastic material
-//! (`material_nonlinearity`) yet; compression trials are ignored; the
-//! needle's bending moment and lateral forces are not modelled; the probe
-//! force is taken as measured (its noise only widens the marker weights);
-//! no plots (the residual tables are written for the report to plot).
-//!
-//! **Known limitation.** The probe force noise moves all markers of a frame
-//! together (along the unit response), but the weights treat it as
-//! independent per coordinate. Effects that rescale trials
-//! (`material_stiffening`, `velocity_dependent_friction`) can absorb that
-//! correlated error, so after the right effect is added they may come out
-//! spuriously significant (likelihood ratio 15-20 on the test bundles).
-//! The cure is to whiten each probe frame with its full covariance
-//! $\sigma_m^2 I + \sigma_F^2 G G^T$ (a rank-2 update, Woodbury).
+//! No hyperelastic material (`material_nonlinearity`) on the model side
+//! yet; compression trials are ignored; the needle's bending moment and
+//! lateral forces are not modelled; the probe force is taken as measured
+//! (its noise enters the covariance, not the parameters).
 
+mod body;
 mod chi2;
 mod diagnose;
 pub mod effect;
@@ -91,6 +90,7 @@ mod model;
 mod observe;
 mod rank;
 mod spec;
+mod whiten;
 mod write;
 
 pub use chi2::{chi2_upper_quantile, chi2_upper_tail};

@@ -68,10 +68,14 @@ pub(crate) struct Observations {
 }
 
 impl Observations {
+    /// The observations of every probe and needle trial of `campaign`,
+    /// keeping at most `frames_per_trial` camera frames of each (evenly
+    /// spaced, the last always kept; 0 keeps all).
     pub fn from_campaign(
         campaign: &Campaign,
         probe_force_samples: usize,
         force_sigma: f64,
+        frames_per_trial: usize,
     ) -> Result<Self, DiagnoseError> {
         let rest: Vec<[f64; 2]> = campaign
             .markers_rest
@@ -104,7 +108,11 @@ impl Observations {
                 message,
             };
             if let Some(track) = &data.markers {
-                for frame in track.frames() {
+                let frames: Vec<_> = track.frames().collect();
+                for frame in thinned(frames.len(), frames_per_trial)
+                    .into_iter()
+                    .map(|i| &frames[i])
+                {
                     let load = match trial.kind {
                         TrialKind::Probe => {
                             let pose = interpolate(&data.tool, frame.t);
@@ -180,6 +188,15 @@ impl Observations {
     }
 }
 
+/// Indices of at most `count` of `n` items, evenly spaced and ending with
+/// the last (all of them when `count` is 0 or not smaller than `n`).
+fn thinned(n: usize, count: usize) -> Vec<usize> {
+    if count == 0 || count >= n {
+        return (0..n).collect();
+    }
+    (1..=count).map(|k| (k * n).div_ceil(count) - 1).collect()
+}
+
 /// The tool pose at time `t`, linear between samples, held beyond the ends.
 fn interpolate(tool: &[ToolSample], t: f64) -> ToolSample {
     let k = tool.partition_point(|s| s.t <= t);
@@ -242,4 +259,17 @@ fn shaft(pose: &ToolSample) -> Result<Option<Shaft>, String> {
         direction,
         length,
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::thinned;
+
+    #[test]
+    fn thinning_spreads_frames_and_keeps_the_last() {
+        assert_eq!(thinned(10, 0), (0..10).collect::<Vec<_>>());
+        assert_eq!(thinned(3, 5), vec![0, 1, 2]);
+        assert_eq!(thinned(10, 3), vec![3, 6, 9]);
+        assert_eq!(thinned(12, 4), vec![2, 5, 8, 11]);
+    }
 }

@@ -63,18 +63,6 @@ pub(crate) struct Ranked {
     pub fitted: Fitted,
 }
 
-/// The whitened residuals at `p`.
-fn whitened(context: &Context, model: &Model, p: &[f64]) -> Result<Vec<f64>, DiagnoseError> {
-    let prediction = context.forward.predict(model, p, &context.obs)?;
-    Ok(prediction
-        .values
-        .iter()
-        .zip(&context.measured)
-        .zip(&context.sigma)
-        .map(|((m, y), s)| (m - y) / s)
-        .collect())
-}
-
 /// Score statistic of `candidate` at the current fit.
 fn score_test(
     context: &Context,
@@ -89,7 +77,7 @@ fn score_test(
             .iter()
             .map(|p| if p.tested { p.null } else { p.initial }),
     );
-    let base = whitened(context, augmented, &at)?;
+    let base = context.whitened(augmented, &at)?;
     // Columns: free current parameters (those not on a bound), tested new ones.
     let current_columns: Vec<usize> = (0..n_current)
         .filter(|&k| fitted.report.uncertainty.status[k] == needle_lsq::ParameterStatus::Estimated)
@@ -112,7 +100,7 @@ fn score_test(
             }
             let mut p = at.clone();
             p[k] += h;
-            let r = whitened(context, augmented, &p)?;
+            let r = context.whitened(augmented, &p)?;
             Ok(r.iter().zip(&base).map(|(a, b)| (a - b) / h).collect())
         })
         .collect();
@@ -171,35 +159,39 @@ pub(crate) fn rank_candidates(
     fitted: &Fitted,
 ) -> Result<Vec<Ranked>, DiagnoseError> {
     let n = context.measured.len() as f64;
-    let mut out = Vec::new();
-    for effect in crate::effect::catalog() {
-        if current.spec.effects.iter().any(|id| id == effect.id()) {
-            continue;
-        }
-        let spec = current.spec.with(effect.id());
-        let start = current.baseline(&fitted.params);
-        let augmented = Model::new(&spec, &context.forward.geometry, start)?;
-        let (score, score_dof) = score_test(context, current, fitted, &augmented)?;
-        let refit = fit_model(context, &augmented, &fitted.params, &[])?;
-        let added = augmented.len() - current.len();
-        let likelihood_ratio = (fitted.chi2 - refit.chi2).max(0.0);
-        let free = refit.report.params.len() as f64;
-        out.push(Ranked {
-            candidate: Candidate {
-                effect: effect.id().to_string(),
-                score,
-                score_p: chi2_upper_tail(score, score_dof),
-                score_dof,
-                likelihood_ratio,
-                likelihood_ratio_p: chi2_upper_tail(likelihood_ratio, added),
-                aic: refit.chi2 + 2.0 * free,
-                bic: refit.chi2 + free * n.ln(),
-                fit_with: refit.fit,
-            },
-            spec,
-            fitted: refit,
-        });
-    }
+    let missing: Vec<_> = crate::effect::catalog()
+        .into_iter()
+        .filter(|effect| !current.spec.effects.iter().any(|id| id == effect.id()))
+        .collect();
+    // Candidates are independent refits: one per thread.
+    let mut out = missing
+        .par_iter()
+        .map(|effect| -> Result<Ranked, DiagnoseError> {
+            let spec = current.spec.with(effect.id());
+            let start = current.baseline(&fitted.params);
+            let augmented = Model::new(&spec, &context.forward.geometry, start)?;
+            let (score, score_dof) = score_test(context, current, fitted, &augmented)?;
+            let refit = fit_model(context, &augmented, &fitted.params, &[])?;
+            let added = augmented.len() - current.len();
+            let likelihood_ratio = (fitted.chi2 - refit.chi2).max(0.0);
+            let free = refit.report.params.len() as f64;
+            Ok(Ranked {
+                candidate: Candidate {
+                    effect: effect.id().to_string(),
+                    score,
+                    score_p: chi2_upper_tail(score, score_dof),
+                    score_dof,
+                    likelihood_ratio,
+                    likelihood_ratio_p: chi2_upper_tail(likelihood_ratio, added),
+                    aic: refit.chi2 + 2.0 * free,
+                    bic: refit.chi2 + free * n.ln(),
+                    fit_with: refit.fit,
+                },
+                spec,
+                fitted: refit,
+            })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
     out.sort_by(|a, b| {
         a.candidate
             .likelihood_ratio_p

@@ -80,14 +80,27 @@ pub struct DiagnoseOptions {
     /// if its likelihood-ratio p-value is below `significance / candidates`
     /// (Bonferroni).
     pub significance: f64,
+    /// The leading candidate is named only if its likelihood ratio is at
+    /// least this fraction of the excess misfit $\chi^2 - \nu$ of the
+    /// current fit: an effect that only soaks up a little of a large
+    /// structured residual is not what is missing (the residual is then
+    /// `Unexplained`).
+    pub min_explained: f64,
     /// A channel's chi-square per dof is consistent with 1 when within this
     /// many sampling standard deviations `sqrt(2/dof)`.
     pub chi2_spread: f64,
     /// The model mesh has elements of at most (marker spacing) / `refinement`.
     pub refinement: usize,
+    /// The `out_of_plane` slab has elements of at most (marker spacing) /
+    /// `slab_refinement` in the plane (and two layers through the thickness).
+    pub slab_refinement: usize,
     /// Number of force samples nearest in time averaged into a probe
     /// trial's force at a camera frame.
     pub probe_force_samples: usize,
+    /// At most this many camera frames of each trial enter the fit, evenly
+    /// spaced and ending with the last (0: all). Fewer frames cost less and
+    /// keep the statistics valid; they only lose power.
+    pub frames_per_trial: usize,
     /// Add the recommended effect and refit until the verdict is not
     /// `MissingEffect`, building the error ladder.
     pub add_recommended: bool,
@@ -104,8 +117,11 @@ impl Default for DiagnoseOptions {
         Self {
             significance: 0.01,
             chi2_spread: 3.0,
+            min_explained: 0.2,
             refinement: 3,
+            slab_refinement: 1,
             probe_force_samples: 9,
+            frames_per_trial: 12,
             add_recommended: false,
             max_added: 4,
             initial_youngs_modulus: 25.0e3,
@@ -125,6 +141,12 @@ impl DiagnoseOptions {
                 format!("{} must be in (0, 1)", self.significance),
             );
         }
+        if !(0.0..1.0).contains(&self.min_explained) {
+            return bad(
+                "min_explained",
+                format!("{} must be in [0, 1)", self.min_explained),
+            );
+        }
         if !(self.chi2_spread.is_finite() && self.chi2_spread > 0.0) {
             return bad(
                 "chi2_spread",
@@ -135,6 +157,12 @@ impl DiagnoseOptions {
             return bad(
                 "refinement",
                 format!("{} must be in 1..=16", self.refinement),
+            );
+        }
+        if self.slab_refinement == 0 || self.slab_refinement > 8 {
+            return bad(
+                "slab_refinement",
+                format!("{} must be in 1..=8", self.slab_refinement),
             );
         }
         if self.probe_force_samples == 0 {

@@ -258,8 +258,30 @@ impl<const D: usize> LinearProblem<D> {
     }
 
     /// Solves several load cases at once (one factorisation, one blocked
-    /// triangular solve).
+    /// triangular solve), with the reactions of each.
     pub fn solve_many(&self, loads: &[&[f64]]) -> Result<Vec<Solution>, FemError> {
+        let displacements = self.displacements_many(loads)?;
+        let dof_count = self.stiffness.nrows();
+        Ok(displacements
+            .into_iter()
+            .zip(loads)
+            .map(|(u, f)| {
+                let ku = multiply(&self.stiffness, &u);
+                let mut reactions = vec![0.0; dof_count];
+                for (d, _) in self.dirichlet.iter() {
+                    reactions[d] = ku[d] - f[d];
+                }
+                Solution {
+                    displacement: u,
+                    reactions,
+                }
+            })
+            .collect())
+    }
+
+    /// The displacements alone of several load cases (no reactions: one
+    /// sparse product per case less than [`LinearProblem::solve_many`]).
+    pub fn displacements_many(&self, loads: &[&[f64]]) -> Result<Vec<Vec<f64>>, FemError> {
         let dof_count = self.stiffness.nrows();
         for f in loads {
             if f.len() != dof_count {
@@ -283,30 +305,34 @@ impl<const D: usize> LinearProblem<D> {
         for (d, v) in self.dirichlet.iter() {
             prescribed[d] = v;
         }
-        let lift = multiply(&self.stiffness, &prescribed);
-        let mut rhs = Mat::<f64>::from_fn(self.free.len(), loads.len(), |k, c| {
-            let d = self.free[k];
-            loads[c][d] - lift[d]
-        });
+        let lift = if self.dirichlet.iter().any(|(_, v)| v != 0.0) {
+            multiply(&self.stiffness, &prescribed)
+        } else {
+            vec![0.0; dof_count]
+        };
+        let free = self.free.len();
+        let mut rhs = Mat::<f64>::zeros(free, loads.len());
+        for (c, f) in loads.iter().enumerate() {
+            let column = rhs
+                .col_mut(c)
+                .try_as_col_major_mut()
+                .expect("contiguous column");
+            for (value, &d) in column.as_slice_mut().iter_mut().zip(&self.free) {
+                *value = f[d] - lift[d];
+            }
+        }
         factor.solve_in_place(rhs.as_mut());
         let mut out = Vec::with_capacity(loads.len());
-        for (c, f) in loads.iter().enumerate() {
+        for c in 0..loads.len() {
+            let column = rhs.col(c).try_as_col_major().expect("contiguous column");
             let mut u = prescribed.clone();
-            for (k, &d) in self.free.iter().enumerate() {
-                u[d] = rhs[(k, c)];
+            for (&value, &d) in column.as_slice().iter().zip(&self.free) {
+                u[d] = value;
             }
             if u.iter().any(|v| !v.is_finite()) {
                 return Err(FemError::NonFinite("displacement solution"));
             }
-            let ku = multiply(&self.stiffness, &u);
-            let mut reactions = vec![0.0; dof_count];
-            for (d, _) in self.dirichlet.iter() {
-                reactions[d] = ku[d] - f[d];
-            }
-            out.push(Solution {
-                displacement: u,
-                reactions,
-            });
+            out.push(u);
         }
         Ok(out)
     }

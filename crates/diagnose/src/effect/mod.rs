@@ -3,8 +3,9 @@
 //! An effect adds named parameters to the model and changes one part of the
 //! forward model through one of the hooks of [`Effect`] (all default to "no
 //! change"): the material field ([`Effect::stiffness_factor`]), the supports
-//! ([`Effect::supports`]), the needle load ([`Effect::shaft_density`]) or the
-//! measurement map ([`Effect::measured_position`]). Every effect has *null*
+//! ([`Effect::supports`]), the needle load ([`Effect::shaft_density`]), the
+//! kinematics, plane or slab ([`Effect::slab_weight`]), or the measurement
+//! map ([`Effect::measured_position`]). Every effect has *null*
 //! parameter values at which it changes nothing: the score test of
 //! [`crate::rank`] evaluates the gradient there.
 //!
@@ -15,6 +16,7 @@ mod compliant_support;
 mod layered_stiffness;
 mod lens_distortion;
 mod material_stiffening;
+mod out_of_plane;
 mod platform_friction;
 mod tip_cutting_force;
 mod velocity_dependent_friction;
@@ -30,6 +32,7 @@ pub const CATALOG: &[fn() -> Box<dyn Effect>] = &[
     || Box::new(platform_friction::PlatformFriction),
     || Box::new(lens_distortion::LensDistortion),
     || Box::new(layered_stiffness::LayeredStiffness),
+    || Box::new(out_of_plane::OutOfPlane),
 ];
 
 /// Every effect of the catalog.
@@ -158,6 +161,13 @@ pub trait Effect: Send + Sync {
     fn shaft_breakpoints(&self, parameters: &[f64], length: f64) -> Vec<f64> {
         let _ = (parameters, length);
         Vec::new()
+    }
+
+    /// Weight of the 3-D slab body in the predicted marker displacements
+    /// (the kinematics; the plane body gets one minus the sum over effects).
+    fn slab_weight(&self, parameters: &[f64]) -> f64 {
+        let _ = parameters;
+        0.0
     }
 
     /// Maps a true marker position on the top face to what the measurement

@@ -1,0 +1,407 @@
+//! The diagnosis part of a report, shared by `cargo xtask diagnose` and
+//! the pipeline: the error ladder (table and plot), the candidates of the
+//! final step, where the residual is on the phantom, and the residual
+//! against every variable it may depend on.
+
+use needle_diagnose::{DiagnosisRun, MarkerResidual};
+use plotters::prelude::*;
+
+use crate::report::Report;
+
+const LADDER_HEADER: [&str; 8] = [
+    "step",
+    "added",
+    "parameters",
+    "rms marker (um)",
+    "rms force (mN)",
+    "chi2/dof marker",
+    "chi2/dof force",
+    "verdict",
+];
+
+/// The ladder as table rows (also printed by the commands).
+pub fn ladder_rows(run: &DiagnosisRun) -> Vec<Vec<String>> {
+    run.ladder
+        .rows
+        .iter()
+        .map(|row| {
+            vec![
+                row.step.to_string(),
+                row.added.clone().unwrap_or_else(|| "(model given)".into()),
+                row.parameters.to_string(),
+                format!("{:.2}", row.fit.rms_marker * 1e6),
+                format!("{:.2}", row.fit.rms_force * 1e3),
+                format!("{:.2}", row.fit.chi2_marker),
+                format!("{:.2}", row.fit.chi2_force),
+                format!("{:?}", row.verdict),
+            ]
+        })
+        .collect()
+}
+
+/// Prints the ladder as a Markdown table.
+pub fn print_ladder(run: &DiagnosisRun) {
+    println!("| {} |", LADDER_HEADER.join(" | "));
+    println!("|{}", "---|".repeat(LADDER_HEADER.len()));
+    for row in ladder_rows(run) {
+        println!("| {} |", row.join(" | "));
+    }
+}
+
+/// Adds the diagnosis sections to `report`, numbered from `number`.
+pub fn add_sections(report: &mut Report, run: &DiagnosisRun, number: &str) -> Result<(), String> {
+    let d = &run.diagnosis;
+    report.section(
+        &format!("{number} Diagnosis: compare the model with the measurements"),
+        &format!(
+            "Bundle <code>{}</code>. Every trial is fitted jointly; residuals are whitened \
+             by the noise ({:?}). Candidates (catalog effects not in the model) are ranked \
+             by a score test at the fit and confirmed by refitting with the effect added; \
+             an effect is named only when its likelihood-ratio p-value is below {:.2e} \
+             (a family-wise false-alarm rate of 1%). Final model {:?}; verdict <b>{:?}</b>.",
+            d.bundle, d.noise, d.threshold_p, d.model, d.verdict
+        ),
+        &[ladder_plot(run)?],
+    );
+    report.table(
+        &format!("{number}a The error ladder"),
+        &LADDER_HEADER,
+        &ladder_rows(run),
+    );
+    let candidates: Vec<Vec<String>> = run
+        .steps
+        .iter()
+        .enumerate()
+        .flat_map(|(step, diagnosis)| {
+            diagnosis.candidates.iter().map(move |c| {
+                vec![
+                    step.to_string(),
+                    c.effect.clone(),
+                    format!("{:.1}", c.score),
+                    format!("{:.1}", c.likelihood_ratio),
+                    format!("{:.2e}", c.likelihood_ratio_p),
+                    format!("{:.2}", c.fit_with.chi2_marker),
+                    format!("{:.2}", c.fit_with.chi2_force),
+                ]
+            })
+        })
+        .collect();
+    report.table(
+        &format!("{number}b Candidates at every step, best first"),
+        &[
+            "step",
+            "effect",
+            "score",
+            "likelihood ratio",
+            "p",
+            "chi2/dof marker with it",
+            "chi2/dof force with it",
+        ],
+        &candidates,
+    );
+    let parameters: Vec<Vec<String>> = run
+        .fitted
+        .parameters
+        .iter()
+        .map(|p| {
+            vec![
+                p.name.clone(),
+                format!("{:.5e}", p.value),
+                p.interval.map_or("not determined".into(), |(lo, hi)| {
+                    format!("{lo:.4e} .. {hi:.4e}")
+                }),
+                p.meaning.clone(),
+            ]
+        })
+        .collect();
+    report.table(
+        &format!("{number}c The fitted model"),
+        &["parameter", "value", "95% interval", "meaning"],
+        &parameters,
+    );
+    report.section(
+        &format!("{number}d Where the final model fails"),
+        "Residual (model minus data) of the final model: the RMS per marker over all \
+         frames (colour), with the mean residual vector of the worst frame (arrows); then \
+         the marker residual against every variable it may depend on, and the base-force \
+         residual against tip depth per insertion.",
+        &[residual_map(&run.marker_residuals)?, residual_panels(run)?],
+    );
+    Ok(())
+}
+
+fn draw_error<E>(e: DrawingAreaErrorKind<E>) -> String
+where
+    E: std::error::Error + Send + Sync,
+{
+    format!("plotting the diagnosis: {e:?}")
+}
+
+/// Chi-square per dof of each channel after every ladder step (log scale).
+fn ladder_plot(run: &DiagnosisRun) -> Result<String, String> {
+    let rows = &run.ladder.rows;
+    let values: Vec<f64> = rows
+        .iter()
+        .flat_map(|r| [r.fit.chi2_marker, r.fit.chi2_force])
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .collect();
+    let top = values.iter().copied().fold(2.0, f64::max) * 1.5;
+    let bottom = values.iter().copied().fold(0.5, f64::min) * 0.7;
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (720, 400)).into_drawing_area();
+        root.fill(&WHITE).map_err(draw_error)?;
+        let steps = rows.len().max(1) as f64;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(
+                "The error ladder: chi2/dof after each step",
+                ("sans-serif", 18),
+            )
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d(-0.5..steps - 0.5, (bottom..top).log_scale())
+            .map_err(draw_error)?;
+        let labels: Vec<String> = rows
+            .iter()
+            .map(|r| r.added.clone().unwrap_or_else(|| "model given".into()))
+            .collect();
+        chart
+            .configure_mesh()
+            .x_labels(rows.len().max(1))
+            .x_label_formatter(&|x| {
+                let k = x.round();
+                if (x - k).abs() < 1e-6 && k >= 0.0 {
+                    labels.get(k as usize).cloned().unwrap_or_default()
+                } else {
+                    String::new()
+                }
+            })
+            .y_desc("chi2 / dof")
+            .draw()
+            .map_err(draw_error)?;
+        chart
+            .draw_series(LineSeries::new(
+                [(-0.5, 1.0), (steps - 0.5, 1.0)],
+                BLACK.stroke_width(1),
+            ))
+            .map_err(draw_error)?
+            .label("noise level")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
+        for (channel, colour, pick) in [("markers", BLUE, 0usize), ("base force", RED, 1usize)] {
+            let points: Vec<(f64, f64)> = rows
+                .iter()
+                .enumerate()
+                .map(|(k, r)| {
+                    let v = if pick == 0 {
+                        r.fit.chi2_marker
+                    } else {
+                        r.fit.chi2_force
+                    };
+                    (k as f64, v)
+                })
+                .filter(|(_, v)| v.is_finite() && *v > 0.0)
+                .collect();
+            chart
+                .draw_series(LineSeries::new(points.clone(), colour.stroke_width(2)))
+                .map_err(draw_error)?
+                .label(channel)
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
+                });
+            chart
+                .draw_series(points.iter().map(|&p| Circle::new(p, 4, colour.filled())))
+                .map_err(draw_error)?;
+        }
+        chart
+            .configure_series_labels()
+            .border_style(BLACK)
+            .background_style(WHITE)
+            .draw()
+            .map_err(draw_error)?;
+        root.present().map_err(draw_error)?;
+    }
+    Ok(svg)
+}
+
+/// RMS residual per marker (colour) and the worst frame's residual arrows.
+fn residual_map(residuals: &[MarkerResidual]) -> Result<String, String> {
+    let mut per_marker: std::collections::BTreeMap<usize, ([f64; 2], f64, usize)> =
+        Default::default();
+    for r in residuals {
+        let entry = per_marker.entry(r.marker).or_insert(([r.x, r.y], 0.0, 0));
+        entry.1 += r.rx * r.rx + r.ry * r.ry;
+        entry.2 += 1;
+    }
+    // The worst frame: largest summed squared residual.
+    let mut frames: std::collections::BTreeMap<(usize, u64), f64> = Default::default();
+    for r in residuals {
+        *frames.entry((r.trial, r.t.to_bits())).or_default() += r.rx * r.rx + r.ry * r.ry;
+    }
+    let worst = frames
+        .iter()
+        .max_by(|a, b| a.1.total_cmp(b.1))
+        .map(|(k, _)| *k);
+    let arrows: Vec<&MarkerResidual> = residuals
+        .iter()
+        .filter(|r| Some((r.trial, r.t.to_bits())) == worst)
+        .collect();
+    let rms: Vec<([f64; 2], f64)> = per_marker
+        .values()
+        .map(|(p, sum, n)| (*p, (sum / *n as f64).sqrt()))
+        .collect();
+    let largest_rms = rms.iter().map(|(_, v)| *v).fold(0.0, f64::max);
+    let largest_arrow = arrows.iter().map(|r| r.rx.hypot(r.ry)).fold(0.0, f64::max);
+    let (x_max, y_max) = rms.iter().fold((0.0f64, 0.0f64), |(a, b), (p, _)| {
+        (a.max(p[0]), b.max(p[1]))
+    });
+    let extent = x_max.max(y_max).max(1e-3);
+    let magnification = if largest_arrow > 0.0 {
+        0.08 * extent / largest_arrow
+    } else {
+        1.0
+    };
+    let mm = 1e3;
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (720, 720)).into_drawing_area();
+        root.fill(&WHITE).map_err(draw_error)?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(
+                format!(
+                    "Residual per marker: RMS up to {:.1} um (colour); worst frame x{magnification:.0}",
+                    largest_rms * 1e6
+                ),
+                ("sans-serif", 16),
+            )
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(50)
+            .build_cartesian_2d(
+                -3.0..x_max * mm + 3.0,
+                y_max * mm + 3.0..-3.0,
+            )
+            .map_err(draw_error)?;
+        chart
+            .configure_mesh()
+            .light_line_style(WHITE)
+            .x_desc("x (mm)")
+            .y_desc("y (mm), insertion direction")
+            .draw()
+            .map_err(draw_error)?;
+        chart
+            .draw_series(rms.iter().map(|(p, v)| {
+                let level = if largest_rms > 0.0 {
+                    v / largest_rms
+                } else {
+                    0.0
+                };
+                let colour = HSLColor(0.66 * (1.0 - level), 0.9, 0.45);
+                Circle::new((p[0] * mm, p[1] * mm), 5, colour.filled())
+            }))
+            .map_err(draw_error)?;
+        chart
+            .draw_series(arrows.iter().map(|r| {
+                PathElement::new(
+                    vec![
+                        (r.x * mm, r.y * mm),
+                        (
+                            (r.x + magnification * r.rx) * mm,
+                            (r.y + magnification * r.ry) * mm,
+                        ),
+                    ],
+                    BLACK.stroke_width(1),
+                )
+            }))
+            .map_err(draw_error)?;
+        root.present().map_err(draw_error)?;
+    }
+    Ok(svg)
+}
+
+/// Marker residual magnitude against six variables, and the base-force
+/// residual against tip depth.
+fn residual_panels(run: &DiagnosisRun) -> Result<String, String> {
+    type Pick = fn(&MarkerResidual) -> f64;
+    let variables: [(&str, Pick); 6] = [
+        ("time (s)", |r| r.t),
+        ("tip depth (mm)", |r| r.tip_depth * 1e3),
+        ("velocity (mm/s)", |r| r.velocity * 1e3),
+        ("day", |r| r.day),
+        ("distance from tool (mm)", |r| r.distance_from_tool * 1e3),
+        ("image radius (mm)", |r| r.radius * 1e3),
+    ];
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (900, 900)).into_drawing_area();
+        root.fill(&WHITE).map_err(draw_error)?;
+        let panels = root.split_evenly((3, 3));
+        for (panel, (label, pick)) in panels.iter().zip(variables) {
+            let points: Vec<(f64, f64)> = run
+                .marker_residuals
+                .iter()
+                .map(|r| (pick(r), r.rx.hypot(r.ry) * 1e6))
+                .filter(|(x, y)| x.is_finite() && y.is_finite())
+                .collect();
+            scatter(panel, &points, label, "|residual| (um)")?;
+        }
+        let forces: Vec<(f64, f64)> = run
+            .force_residuals
+            .iter()
+            .map(|r| (r.tip_depth * 1e3, r.rx.hypot(r.ry).copysign(r.ry) * 1e3))
+            .filter(|(x, y)| x.is_finite() && y.is_finite())
+            .collect();
+        scatter(&panels[6], &forces, "tip depth (mm)", "force residual (mN)")?;
+        root.present().map_err(draw_error)?;
+    }
+    Ok(svg)
+}
+
+fn scatter<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    points: &[(f64, f64)],
+    x_label: &str,
+    y_label: &str,
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    let fail = |e: DrawingAreaErrorKind<DB::ErrorType>| format!("plotting {x_label}: {e:?}");
+    let range = |values: &mut dyn Iterator<Item = f64>| {
+        let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(v), b.max(v))
+        });
+        if lo.is_finite() && hi > lo {
+            let pad = 0.05 * (hi - lo);
+            (lo - pad, hi + pad)
+        } else if lo.is_finite() {
+            (lo - 1.0, lo + 1.0)
+        } else {
+            (0.0, 1.0)
+        }
+    };
+    let (x0, x1) = range(&mut points.iter().map(|p| p.0));
+    let (y0, y1) = range(&mut points.iter().map(|p| p.1));
+    let mut chart = ChartBuilder::on(area)
+        .margin(8)
+        .x_label_area_size(32)
+        .y_label_area_size(48)
+        .build_cartesian_2d(x0..x1, y0..y1)
+        .map_err(fail)?;
+    chart
+        .configure_mesh()
+        .x_desc(x_label)
+        .y_desc(y_label)
+        .x_labels(5)
+        .y_labels(5)
+        .draw()
+        .map_err(fail)?;
+    chart
+        .draw_series(
+            points
+                .iter()
+                .map(|&p| Circle::new(p, 2, BLUE.mix(0.4).filled())),
+        )
+        .map_err(fail)?;
+    Ok(())
+}
