@@ -11,9 +11,10 @@
 //!    (eq. 6, Figs. 10b, 13, 14);
 //! 5. the diagnosis loop (`needle-diagnose`) fits the paper's baseline to
 //!    every trial, names the missing effect, adds it and refits until the
-//!    residual is consistent with noise (the error ladder), and the fitted
-//!    model's simulation of each insertion is compared with the measured
-//!    markers (the paper's Fig. 16);
+//!    residual is consistent with noise or unexplained (the error ladder),
+//!    and the fitted model's simulation of each insertion is compared with
+//!    the measured markers (the paper's Fig. 16; in-sample, since the
+//!    fitted model saw those markers);
 //! 6. everything goes into one offline HTML report.
 
 use std::path::PathBuf;
@@ -520,7 +521,8 @@ fn diagnose_stage(folder: &OutputFolder, quick: bool, report: &mut Report) -> Re
         ]);
     }
     report.table(
-        "6. Simulated insertions against the measurements (the paper's Fig. 16)",
+        "6. Simulated insertions against the measurements (the paper's Fig. 16; \
+         in-sample: the fitted model's residuals)",
         &[
             "insertion",
             "marker positions compared",
