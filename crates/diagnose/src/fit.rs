@@ -35,16 +35,20 @@ pub(crate) struct Context {
 }
 
 impl Context {
-    /// Whitened residuals of the model at `p`.
-    pub fn whitened(&self, model: &Model, p: &[f64]) -> Result<Vec<f64>, DiagnoseError> {
+    /// Residuals model - data at `p`, not whitened.
+    pub fn residuals(&self, model: &Model, p: &[f64]) -> Result<Vec<f64>, DiagnoseError> {
         let prediction = self.forward.predict(model, p, &self.obs)?;
-        let raw: Vec<f64> = prediction
+        Ok(prediction
             .values
             .iter()
             .zip(&self.measured)
             .map(|(m, y)| m - y)
-            .collect();
-        Ok(self.whitening.apply(&raw))
+            .collect())
+    }
+
+    /// Whitened residuals of the model at `p`.
+    pub fn whitened(&self, model: &Model, p: &[f64]) -> Result<Vec<f64>, DiagnoseError> {
+        Ok(self.whitening.apply(&self.residuals(model, p)?))
     }
 }
 
@@ -103,13 +107,7 @@ pub(crate) fn fit_model(
     engine.options.max_evaluations = 300;
     let report = engine.minimize(&problem, &parameters)?;
     let params: Vec<f64> = report.params.iter().copied().collect();
-    let prediction = context.forward.predict(model, &params, &context.obs)?;
-    let residuals: Vec<f64> = prediction
-        .values
-        .iter()
-        .zip(&context.measured)
-        .map(|(p, y)| p - y)
-        .collect();
+    let residuals = context.residuals(model, &params)?;
     let free = parameters.iter().filter(|p| !p.fixed).count();
     let (fit, chi2, dof) = misfit(context, &residuals, free);
     Ok(Fitted {

@@ -531,12 +531,7 @@ mod tests {
         let reference = forward.predict(&baseline, &p0, &obs).unwrap().values;
         assert!(reference.iter().any(|v| v.abs() > 1e-5));
         for effect in catalog() {
-            let model = Model::new(
-                &ModelSpec::from_ids(&[effect.id()]).unwrap(),
-                &forward.geometry,
-                start,
-            )
-            .unwrap();
+            let model = with_effect(&forward, start, effect.id());
             let mut p = p0.clone();
             p.extend(model.parameters[p0.len()..].iter().map(|q| q.null));
             let at_null = forward.predict(&model, &p, &obs).unwrap().values;
@@ -566,15 +561,20 @@ mod tests {
         }
     }
 
-    #[test]
-    fn needle_force_integrates_the_density() {
-        let (obs, forward, start) = paper_forward();
-        let model = Model::new(
-            &ModelSpec::from_ids(&["tip_cutting_force"]).unwrap(),
+    /// The baseline plus one effect.
+    fn with_effect(forward: &Forward, start: Baseline, id: &str) -> Model {
+        Model::new(
+            &ModelSpec::from_ids(&[id]).unwrap(),
             &forward.geometry,
             start,
         )
-        .unwrap();
+        .unwrap()
+    }
+
+    #[test]
+    fn needle_force_integrates_the_density() {
+        let (obs, forward, start) = paper_forward();
+        let model = with_effect(&forward, start, "tip_cutting_force");
         // q0 = 10 N/m, peak 20 N/m over 5 mm: F = 10 L + 20 * 0.005 / 2.
         let p = [25.0e3, 0.45, 10.0, 20.0, 0.005];
         let values = forward.predict(&model, &p, &obs).unwrap().values;
@@ -588,12 +588,7 @@ mod tests {
     #[test]
     fn slab_weight_blends_the_plane_and_the_slab_linearly() {
         let (obs, forward, start) = paper_forward();
-        let model = Model::new(
-            &ModelSpec::from_ids(&["out_of_plane"]).unwrap(),
-            &forward.geometry,
-            start,
-        )
-        .unwrap();
+        let model = with_effect(&forward, start, "out_of_plane");
         // Marker values only: the base force does not depend on the kinematics.
         let at = |w: f64| {
             let mut values = forward

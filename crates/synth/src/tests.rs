@@ -25,6 +25,20 @@ fn small() -> Scenario {
     s
 }
 
+/// The small scenario with the 2-D truth and with the 3-D slab truth.
+fn plane_and_slab() -> [Scenario; 2] {
+    [
+        small(),
+        Scenario {
+            effects: Effects {
+                out_of_plane: Some(OutOfPlane),
+                ..Effects::none()
+            },
+            ..small()
+        },
+    ]
+}
+
 fn plan(s: &Scenario) -> NeedlePlan {
     s.needles.plan()[0]
 }
@@ -42,16 +56,7 @@ fn back_reaction(world: &World, r: &[f64]) -> f64 {
 
 #[test]
 fn needle_load_is_balanced_by_the_fixed_face() {
-    for s in [
-        small(),
-        Scenario {
-            effects: Effects {
-                out_of_plane: Some(OutOfPlane),
-                ..Effects::none()
-            },
-            ..small()
-        },
-    ] {
+    for s in plane_and_slab() {
         let world = World::new(&s).unwrap();
         let response = world.response(0.0).unwrap();
         let run = insert(
@@ -203,16 +208,7 @@ fn stiffened_day_shares_the_factorisation_and_scales_exactly() {
 
 #[test]
 fn probe_by_lagrange_multipliers_equals_the_held_face_solve() {
-    for s in [
-        small(),
-        Scenario {
-            effects: Effects {
-                out_of_plane: Some(OutOfPlane),
-                ..Effects::none()
-            },
-            ..small()
-        },
-    ] {
+    for s in plane_and_slab() {
         let world = World::new(&s).unwrap();
         let probe = s.probes[0];
         let run = press(&world, &probe).unwrap();
@@ -239,16 +235,7 @@ fn probe_by_lagrange_multipliers_equals_the_held_face_solve() {
 
 #[test]
 fn neo_hookean_tangent_at_rest_is_the_linear_stiffness() {
-    for s in [
-        small(),
-        Scenario {
-            effects: Effects {
-                out_of_plane: Some(OutOfPlane),
-                ..Effects::none()
-            },
-            ..small()
-        },
-    ] {
+    for s in plane_and_slab() {
         let world = World::new(&s).unwrap();
         let pairs = [(s.phantom.youngs_modulus, s.phantom.poisson_ratio)];
         let linear = Stiffness::new(
