@@ -1,8 +1,10 @@
 //! Speed of the condensed solver: the per-tick needle query, exchanges, node
-//! additions and frame rotations at the paper's size (361 nodes, N = 722), the
-//! cost of an exchange against N, a 3-D set of 3000 working coordinates, a full
-//! sparse re-solve for comparison, and a stream copy for the machine's memory
-//! bandwidth. Run with short times (2 shared cores), see docs/condense.md.
+//! additions and frame rotations at the paper's size (361 nodes, N = 722) for
+//! every update policy side by side, the cost of an exchange against N, a 3-D
+//! set of 3000 working coordinates, a full sparse re-solve for comparison, the
+//! dense kernels the stored-`S` forms could use (full or half storage, f64 or
+//! f32), and a stream copy for the machine's memory bandwidth. Run with short
+//! times (2 shared cores), see docs/condense.md.
 
 use std::hint::black_box;
 use std::sync::Arc;
@@ -63,6 +65,7 @@ fn paper_size(c: &mut Criterion) {
         ("buffered16", UpdatePolicy::Buffered { max_pending: 16 }),
         ("buffered32", UpdatePolicy::Buffered { max_pending: 32 }),
         ("buffered64", UpdatePolicy::Buffered { max_pending: 64 }),
+        ("capacitance", UpdatePolicy::Capacitance),
     ] {
         let (_, mut system) = planar(policy, 361);
         assert_eq!(system.len(), 722);
@@ -113,23 +116,32 @@ fn paper_size(c: &mut Criterion) {
         });
     }
     // Adding a prefetched node to 360 working nodes (state with 10 needle nodes).
+    for (name, policy) in [
+        ("buffered16", UpdatePolicy::Buffered { max_pending: 16 }),
+        ("capacitance", UpdatePolicy::Capacitance),
+    ] {
+        let (lattice, mut system) = planar(policy, 360);
+        let needle = needle_nodes(&system, 10);
+        haptic_state(&mut system, &needle);
+        let extra = lattice.free_nodes()[360];
+        group.bench_function(BenchmarkId::new("add_prefetched_node", name), |b| {
+            b.iter_custom(|iterations| {
+                let mut total = Duration::ZERO;
+                for _ in 0..iterations {
+                    system.prefetch(&[extra]).unwrap();
+                    let start = Instant::now();
+                    system.add_node(black_box(extra)).unwrap();
+                    total += start.elapsed();
+                    system.remove_node(extra).unwrap();
+                }
+                total
+            })
+        });
+    }
     let (lattice, mut system) = planar(UpdatePolicy::Buffered { max_pending: 16 }, 360);
     let needle = needle_nodes(&system, 10);
     haptic_state(&mut system, &needle);
     let extra = lattice.free_nodes()[360];
-    group.bench_function("add_prefetched_node", |b| {
-        b.iter_custom(|iterations| {
-            let mut total = Duration::ZERO;
-            for _ in 0..iterations {
-                system.prefetch(&[extra]).unwrap();
-                let start = Instant::now();
-                system.add_node(black_box(extra)).unwrap();
-                total += start.elapsed();
-                system.remove_node(extra).unwrap();
-            }
-            total
-        })
-    });
     group.bench_function("add_node_with_solve", |b| {
         b.iter_custom(|iterations| {
             let mut total = Duration::ZERO;
@@ -203,6 +215,15 @@ fn scaling(c: &mut Criterion) {
         group.bench_function(BenchmarkId::new("slip_rotation_immediate", n), |b| {
             b.iter(|| system.rotate_node_by_angle(node, black_box(1e-3)).unwrap())
         });
+        // The capacitance form with 10 needle nodes (|σ| = 16-17) as in the haptic state.
+        let mut system =
+            CondensedSystem::new(model.clone(), &free[..nodes], UpdatePolicy::Capacitance).unwrap();
+        let needle = needle_nodes(&system, 10);
+        haptic_state(&mut system, &needle);
+        let axial = system.coordinate(needle[0], 1).unwrap();
+        group.bench_function(BenchmarkId::new("capacitance", n), |b| {
+            b.iter(|| system.exchange(black_box(axial)).unwrap())
+        });
     }
     group.finish();
 }
@@ -264,6 +285,126 @@ fn spatial(c: &mut Criterion) {
             total
         })
     });
+    drop(system);
+    let mut system = CondensedSystem::new(
+        Arc::new(FullModel::factor(&lattice.stiffness, 3, &lattice.fixed_dofs).unwrap()),
+        &free[..1000],
+        UpdatePolicy::Capacitance,
+    )
+    .unwrap();
+    haptic_state(&mut system, &needle);
+    group.bench_function("capacitance_tick_exchange_and_query", |b| {
+        b.iter(|| {
+            system.exchange(black_box(axial)).unwrap();
+            system.unknowns_into(&coordinates, &mut out).unwrap();
+        })
+    });
+    group.bench_function("capacitance_tick_query", |b| {
+        b.iter(|| {
+            system
+                .unknowns_into(black_box(&coordinates), &mut out)
+                .unwrap()
+        })
+    });
+    let extra = free[1000];
+    group.bench_function("capacitance_add_prefetched_node", |b| {
+        b.iter_custom(|iterations| {
+            let mut total = Duration::ZERO;
+            for _ in 0..iterations {
+                system.prefetch(&[extra]).unwrap();
+                let start = Instant::now();
+                system.add_node(black_box(extra)).unwrap();
+                total += start.elapsed();
+                system.remove_node(extra).unwrap();
+            }
+            total
+        })
+    });
+    group.finish();
+}
+
+/// The dense kernels a stored `S` would stream at N = 722: a rank-one update
+/// of the full matrix or of its lower half (half storage of the symmetric
+/// `diag(s) S`), in f64 and f32, and a fold of 16 pending terms (GEMM).
+fn kernels(c: &mut Criterion) {
+    use faer::linalg::matmul::matmul;
+    use faer::linalg::matmul::triangular::{self, BlockStructure};
+    use faer::{Accum, Mat, Par};
+    let mut group = c.benchmark_group("kernels_N722");
+    let n = 722;
+    let mut full = Mat::<f64>::from_fn(n, n, |i, j| 1.0 / (1.0 + (i + j) as f64));
+    let u = Mat::<f64>::from_fn(n, 16, |i, j| ((i * 7 + j) % 13) as f64 * 1e-3);
+    let w = Mat::<f64>::from_fn(n, 16, |i, j| ((i * 5 + j) % 11) as f64 * 1e-3);
+    group.bench_function("rank_one_full_f64", |b| {
+        b.iter(|| {
+            matmul(
+                full.as_mut(),
+                Accum::Add,
+                u.col(0).as_mat(),
+                w.col(0).transpose().as_mat(),
+                -1.0,
+                Par::Seq,
+            )
+        })
+    });
+    group.bench_function("rank_one_lower_half_f64", |b| {
+        b.iter(|| {
+            triangular::matmul(
+                full.as_mut(),
+                BlockStructure::TriangularLower,
+                Accum::Add,
+                u.col(0).as_mat(),
+                BlockStructure::Rectangular,
+                u.col(0).transpose().as_mat(),
+                BlockStructure::Rectangular,
+                -1.0,
+                Par::Seq,
+            )
+        })
+    });
+    let mut single = Mat::<f32>::from_fn(n, n, |i, j| 1.0 / (1.0 + (i + j) as f32));
+    let u32 = Mat::<f32>::from_fn(n, 1, |i, _| (i % 13) as f32 * 1e-3);
+    let w32 = Mat::<f32>::from_fn(n, 1, |i, _| (i % 11) as f32 * 1e-3);
+    group.bench_function("rank_one_full_f32", |b| {
+        b.iter(|| {
+            matmul(
+                single.as_mut(),
+                Accum::Add,
+                u32.as_ref(),
+                w32.transpose(),
+                -1.0,
+                Par::Seq,
+            )
+        })
+    });
+    group.bench_function("fold16_full_f64", |b| {
+        b.iter(|| {
+            matmul(
+                full.as_mut(),
+                Accum::Add,
+                u.as_ref(),
+                w.transpose(),
+                -1.0,
+                Par::Seq,
+            )
+        })
+    });
+    group.bench_function("fold16_lower_half_f64", |b| {
+        b.iter(|| {
+            triangular::matmul(
+                full.as_mut(),
+                BlockStructure::TriangularLower,
+                Accum::Add,
+                u.as_ref(),
+                BlockStructure::Rectangular,
+                u.transpose(),
+                BlockStructure::Rectangular,
+                -1.0,
+                Par::Seq,
+            )
+        })
+    });
+    black_box((&full, &single));
     group.finish();
 }
 
@@ -286,6 +427,6 @@ fn stream(c: &mut Criterion) {
 criterion_group! {
     name = benches;
     config = Criterion::default().warm_up_time(Duration::from_millis(500)).measurement_time(Duration::from_secs(2)).sample_size(20);
-    targets = paper_size, scaling, spatial, stream
+    targets = paper_size, scaling, spatial, kernels, stream
 }
 criterion_main!(benches);

@@ -77,11 +77,13 @@ impl CondensedSystem {
                 }
             }
         }
-        // S[:, σ] g_σ = S_b[:, σ] g_σ + U (W[σ, :]^T g_σ).
+        // S[:, σ] g_σ = S_b[:, σ] g_σ + U (W[σ, :]^T g_σ). The capacitance
+        // form stores G itself: the border is g and the corner γ, as if σ were empty.
+        let pivoted = !self.is_capacitance();
         let mut s_g = vec![0.0; n * d];
         let pending = self.pending;
         let mut projected = vec![0.0; pending * d];
-        for j in (0..n).filter(|&j| self.displacement_given[j]) {
+        for j in (0..n).filter(|&j| pivoted && self.displacement_given[j]) {
             let base_col = self.base.col(j);
             for a in 0..d {
                 let weight = g[a * n + j];
@@ -112,13 +114,14 @@ impl CondensedSystem {
         self.pending_w.resize(new_n, rows_u);
         for a in 0..d {
             for k in 0..n {
-                let border = if self.displacement_given[k] {
+                let border = if pivoted && self.displacement_given[k] {
                     -s_g[a * n + k]
                 } else {
                     g[a * n + k] - s_g[a * n + k]
                 };
+                let row_sign = if pivoted { self.sign(k) } else { 1.0 };
                 self.base.set(k, n + a, border);
-                self.base.set(n + a, k, self.sign(k) * border);
+                self.base.set(n + a, k, row_sign * border);
             }
         }
         for a in 0..d {
@@ -127,7 +130,7 @@ impl CondensedSystem {
                 let gamma =
                     0.5 * (columns[b * n_free + new_free[a]] + columns[a * n_free + new_free[b]]);
                 let correction: f64 = (0..n)
-                    .filter(|&j| self.displacement_given[j])
+                    .filter(|&j| pivoted && self.displacement_given[j])
                     .map(|j| g[a * n + j] * s_g[b * n + j])
                     .sum();
                 self.base.set(n + a, n + b, gamma - correction);
@@ -153,6 +156,11 @@ impl CondensedSystem {
         let slot = self.slot(node)?;
         let d = self.dim;
         let b0 = slot * d;
+        if self.is_capacitance() {
+            // Dropping the node's rows and columns of G makes it force-free.
+            self.drop_from_sigma(b0..b0 + d);
+            self.displacement_given[b0..b0 + d].fill(false);
+        }
         for a in 0..d {
             if self.displacement_given[b0 + a] {
                 self.exchange(b0 + a)?;
@@ -167,6 +175,7 @@ impl CondensedSystem {
                 self.base.copy_row(from, to);
                 self.pending_u.copy_row(from, to);
                 self.pending_w.copy_row(from, to);
+                self.renumber_sigma(from, to);
                 self.free_of_coord[to] = self.free_of_coord[from];
                 self.displacement_given[to] = self.displacement_given[from];
                 self.prescribed[to] = self.prescribed[from];
@@ -188,6 +197,9 @@ impl CondensedSystem {
         self.pending_u.resize(new_n, cols_u);
         self.pending_w.resize(new_n, cols_u);
         self.size_scratch();
+        if self.is_capacitance() {
+            self.refactor_capacitance()?;
+        }
         Ok(())
     }
 }

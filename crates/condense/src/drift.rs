@@ -85,6 +85,10 @@ impl CondensedSystem {
             let frame = self.frames[slot];
             self.rotate_uniform(slot * d, &frame);
         }
+        if self.is_capacitance() {
+            // G is all the capacitance form stores; σ and y are unchanged.
+            return self.refactor_capacitance();
+        }
         let policy = self.policy;
         let prescribed = self.prescribed.clone();
         let swapped: Vec<usize> = (0..n).filter(|&i| self.displacement_given[i]).collect();

@@ -41,8 +41,17 @@ impl CondensedSystem {
     /// For a positive definite model every pivot is positive (`S` stays a
     /// P-matrix); a non-positive pivot means the mixed problem is ill-posed and
     /// is reported as [`CondenseError::SingularPivot`].
+    ///
+    /// In the capacitance form `S` is not stored: `i` joins or leaves σ and
+    /// the factor of `G[σ, σ]` is bordered (pivot `S_ii` as above) or
+    /// refactorised instead (see [`UpdatePolicy::Capacitance`]).
+    ///
+    /// [`UpdatePolicy::Capacitance`]: crate::UpdatePolicy::Capacitance
     pub fn exchange(&mut self, i: usize) -> Result<(), CondenseError> {
         self.check_coordinate(i)?;
+        if self.is_capacitance() {
+            return self.exchange_capacitance(i);
+        }
         let mut column = std::mem::take(&mut self.scratch.column);
         let mut row = std::mem::take(&mut self.scratch.row);
         self.current_column_into(i, &mut column);

@@ -21,8 +21,10 @@
 //!   column operations, equation (10) with the appendix's closed-form inverse
 //!   for a slipping node ([`CondensedSystem::rotate_node`],
 //!   [`appendix_slip_inverse_columns`]);
-//! - applies updates at once or keeps them as a low-rank (capacitance /
-//!   Woodbury) buffer folded in later ([`UpdatePolicy`]);
+//! - applies updates at once, keeps them as a low-rank (Woodbury) buffer
+//!   folded in later, or never forms `S` and keeps `G` with the Cholesky
+//!   factor of its small displacement-given block (the capacitance form)
+//!   ([`UpdatePolicy`]);
 //! - answers the per-tick query of the needle unknowns in O(m N)
 //!   ([`CondensedSystem::unknowns_into`]), apart from the graphics-rate query
 //!   of all unknowns ([`CondensedSystem::unknowns_all_into`]);
@@ -52,6 +54,7 @@
 //! synthetic SPD models for tests and benchmarks.
 
 mod border;
+mod capacitance;
 mod dense;
 mod drift;
 mod error;

@@ -18,6 +18,11 @@ impl CondensedSystem {
     /// reaction force if displacement-given): row `i` of `S` times `y`, read from
     /// column `i` through the sign symmetry. O(N + N k).
     pub fn unknown(&mut self, i: usize) -> f64 {
+        if self.is_capacitance() {
+            let mut value = [0.0];
+            self.unknowns_capacitance(&[i], &mut value);
+            return value[0];
+        }
         let mut column = std::mem::take(&mut self.scratch.column);
         self.current_column_into(i, &mut column);
         let sign_i = self.sign(i);
@@ -34,7 +39,10 @@ impl CondensedSystem {
     /// The unknowns of the given coordinates into `out`: the per-tick query
     /// (forces on the needle nodes). With `ỹ = s ∘ y`,
     /// `x_i = s_i (S_b[:, i] · ỹ + W[i, :] · (U^T ỹ))`: O(m N + N k) for
-    /// `m` coordinates and `k` pending updates, no allocation.
+    /// `m` coordinates and `k` pending updates, no allocation (in the
+    /// capacitance form: see [`UpdatePolicy::Capacitance`]).
+    ///
+    /// [`UpdatePolicy::Capacitance`]: crate::UpdatePolicy::Capacitance
     pub fn unknowns_into(
         &mut self,
         coordinates: &[usize],
@@ -49,6 +57,10 @@ impl CondensedSystem {
         }
         for &i in coordinates {
             self.check_coordinate(i)?;
+        }
+        if self.is_capacitance() {
+            self.unknowns_capacitance(coordinates, out);
+            return Ok(());
         }
         let mut signed = std::mem::take(&mut self.scratch.signed_prescribed);
         for (j, (s, y)) in signed.iter_mut().zip(&self.prescribed).enumerate() {
@@ -79,6 +91,10 @@ impl CondensedSystem {
                 got: out.len(),
                 expected: n,
             });
+        }
+        if self.is_capacitance() {
+            self.unknowns_all_capacitance(out);
+            return Ok(());
         }
         out.fill(0.0);
         for (j, &y) in self.prescribed.iter().enumerate() {

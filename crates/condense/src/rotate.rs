@@ -78,7 +78,15 @@ impl CondensedSystem {
         let force = transpose_times(rotation, &force, d);
 
         let first = self.displacement_given[b0];
-        if (0..d).all(|a| self.displacement_given[b0 + a] == first) {
+        let uniform = (0..d).all(|a| self.displacement_given[b0 + a] == first);
+        if self.is_capacitance() {
+            // G rotates by equation (9) whatever the conditions; σ keeps its
+            // local coordinates, so only the factor of G[σ, σ] must follow.
+            self.rotate_uniform(b0, rotation);
+            if (0..d).any(|a| self.displacement_given[b0 + a]) {
+                self.refactor_capacitance()?;
+            }
+        } else if uniform {
             self.rotate_uniform(b0, rotation);
         } else {
             self.rotate_mixed(node, b0, rotation)?;

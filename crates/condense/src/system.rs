@@ -4,6 +4,7 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
+use crate::capacitance::Capacitance;
 use crate::dense::Dense;
 use crate::{CondenseError, FullModel};
 
@@ -31,6 +32,15 @@ pub enum UpdatePolicy {
         /// Rank of the buffer before it is folded (at least 1).
         max_pending: usize,
     },
+    /// `S` is never formed: the system keeps `G = A^T K_W^{-1} A` and the
+    /// Cholesky factor of `G[σ, σ]` (σ the displacement-given coordinates) and
+    /// solves `G[σ, σ] f_σ = y_σ - G[σ, τ] y_τ` at each query. An exchange
+    /// costs O(|σ|^2) (joining σ) or O(|σ|^3 / 6) (leaving), a rotation O(d N)
+    /// plus a refactorisation, a node addition O(d N), a query of `m`
+    /// unknowns O((|σ| + m) N), or O((|σ| + m) l) when only `l` coordinates
+    /// carry a force: the fastest form while σ (the needle's coordinates)
+    /// stays small against `N`. See `docs/condense.md`.
+    Capacitance,
 }
 
 /// The condensed reduced system of the working nodes.
@@ -56,7 +66,8 @@ pub struct CondensedSystem {
     pub(crate) slot_of: HashMap<usize, usize>,
     /// Free-dof index (in the full model) of each working coordinate.
     pub(crate) free_of_coord: Vec<usize>,
-    /// `S_b`: with the pending buffer, `S = S_b + U W^T`.
+    /// `S_b`: with the pending buffer, `S = S_b + U W^T`; in the capacitance
+    /// form, `G = A^T K_W^{-1} A` itself.
     pub(crate) base: Dense,
     pub(crate) pending_u: Dense,
     pub(crate) pending_w: Dense,
@@ -70,6 +81,8 @@ pub struct CondensedSystem {
     /// Prefetched solves: node -> `d` columns of `K^{-1}` over the free dofs.
     pub(crate) cache: HashMap<usize, Vec<f64>>,
     pub(crate) scratch: Scratch,
+    /// Factor of `G[σ, σ]` (capacitance form only; empty otherwise).
+    pub(crate) capacitance: Capacitance,
 }
 
 /// Preallocated work vectors, so that an exchange or a query allocates nothing.
@@ -113,12 +126,12 @@ impl CondensedSystem {
         let mut base = Dense::zeros(n, n, n, n);
         fill_compliance(&model, &free_of_coord, &mut base);
         let max_pending = match policy {
-            UpdatePolicy::Immediate => 0,
+            UpdatePolicy::Immediate | UpdatePolicy::Capacitance => 0,
             UpdatePolicy::Buffered { max_pending } => max_pending.max(1),
         };
         let policy = match policy {
-            UpdatePolicy::Immediate => UpdatePolicy::Immediate,
             UpdatePolicy::Buffered { .. } => UpdatePolicy::Buffered { max_pending },
+            other => other,
         };
         let mut system = Self {
             model,
@@ -136,6 +149,7 @@ impl CondensedSystem {
             prescribed: vec![0.0; n],
             cache: HashMap::new(),
             scratch: Scratch::default(),
+            capacitance: Capacitance::default(),
         };
         system.size_scratch();
         Ok(system)
@@ -225,8 +239,21 @@ impl CondensedSystem {
         self.pending
     }
 
-    /// The current `S` as a dense matrix (an O(N^2) copy, for inspection and tests).
+    /// The current `S` as a dense matrix (an O(N^2) copy, for inspection and
+    /// tests; O(N^2 |σ|) in the capacitance form, which never stores `S`).
     pub fn current_matrix(&self) -> faer::Mat<f64> {
+        if self.is_capacitance() {
+            let n = self.len();
+            let mut out = faer::Mat::<f64>::zeros(n, n);
+            let mut column = vec![0.0; n];
+            for j in 0..n {
+                self.capacitance_column_into(j, &mut column);
+                for (i, &v) in column.iter().enumerate() {
+                    out[(i, j)] = v;
+                }
+            }
+            return out;
+        }
         let mut out = self.base.as_ref().to_owned();
         if self.pending > 0 {
             faer::linalg::matmul::matmul(
@@ -269,6 +296,10 @@ impl CondensedSystem {
 
     /// Column `j` of the current `S` into `out`: `S_b[:, j] + U W[j, :]^T`.
     pub(crate) fn current_column_into(&self, j: usize, out: &mut [f64]) {
+        if self.is_capacitance() {
+            self.capacitance_column_into(j, out);
+            return;
+        }
         out.copy_from_slice(self.base.col(j));
         let k = self.pending;
         if k > 0 {
@@ -293,6 +324,11 @@ impl CondensedSystem {
     pub(crate) fn add_rank_one(&mut self, column: &[f64], row: &[f64]) {
         match self.policy {
             UpdatePolicy::Immediate => self.base.add_outer(column, row),
+            // Exchanges and rotations of the capacitance form change G or the
+            // factor, never S by a rank-one term.
+            UpdatePolicy::Capacitance => {
+                unreachable!("no rank-one update of S in the capacitance form")
+            }
             UpdatePolicy::Buffered { max_pending } => {
                 if self.pending == max_pending {
                     self.fold();

@@ -128,8 +128,17 @@ fn node_block_operator(
 
 #[test]
 fn uniform_rotations_match_the_product_of_equation_9() {
-    for (shape, d) in [(&[5usize, 6][..], 2usize), (&[3, 4, 3][..], 3)] {
-        let mut sys = system(shape, 6, UpdatePolicy::Buffered { max_pending: 2 });
+    for (shape, d, policy) in [
+        (
+            &[5usize, 6][..],
+            2usize,
+            UpdatePolicy::Buffered { max_pending: 2 },
+        ),
+        (&[3, 4, 3][..], 3, UpdatePolicy::Buffered { max_pending: 2 }),
+        (&[5, 6][..], 2, UpdatePolicy::Capacitance),
+        (&[3, 4, 3][..], 3, UpdatePolicy::Capacitance),
+    ] {
+        let mut sys = system(shape, 6, policy);
         let n = sys.len();
         let nodes = sys.working_nodes().to_vec();
         // Node 1 fully displacement-given, node 2 force-given; one pending update.
@@ -189,6 +198,7 @@ fn slip_rotations_match_the_inverse_of_equation_10() {
         for policy in [
             UpdatePolicy::Immediate,
             UpdatePolicy::Buffered { max_pending: 3 },
+            UpdatePolicy::Capacitance,
         ] {
             let mut sys = system(shape, 6, policy);
             let nodes = sys.working_nodes().to_vec();
@@ -268,6 +278,7 @@ fn adding_a_node_does_not_make_the_needle_force_jump() {
     for policy in [
         UpdatePolicy::Immediate,
         UpdatePolicy::Buffered { max_pending: 4 },
+        UpdatePolicy::Capacitance,
     ] {
         let lattice = Lattice::new(&[7, 8], 5).unwrap();
         let model =
@@ -330,13 +341,14 @@ fn adding_a_node_does_not_make_the_needle_force_jump() {
 }
 
 #[test]
-fn buffered_and_immediate_agree_and_drift_stays_small() {
+fn policies_agree_and_drift_stays_small() {
     let mut immediate = system(&[6, 7], 12, UpdatePolicy::Immediate);
     let mut buffered = system(&[6, 7], 12, UpdatePolicy::Buffered { max_pending: 5 });
+    let mut capacitance = system(&[6, 7], 12, UpdatePolicy::Capacitance);
     let nodes = immediate.working_nodes().to_vec();
     for step in 0..120usize {
         let node = nodes[(step * 7) % nodes.len()];
-        for sys in [&mut immediate, &mut buffered] {
+        for sys in [&mut immediate, &mut buffered, &mut capacitance] {
             if step % 3 == 0 {
                 sys.rotate_node_by_angle(node, 0.05 * (step as f64).sin())
                     .unwrap();
@@ -350,7 +362,9 @@ fn buffered_and_immediate_agree_and_drift_stays_small() {
     let a = to_nalgebra(&immediate.current_matrix());
     let b = to_nalgebra(&buffered.current_matrix());
     assert!(relative_difference(&a, &b) < 1e-11);
-    for sys in [&mut immediate, &mut buffered] {
+    let c = to_nalgebra(&capacitance.current_matrix());
+    assert!(relative_difference(&a, &c) < 1e-11);
+    for sys in [&mut immediate, &mut buffered, &mut capacitance] {
         let drift = sys.drift(3);
         assert!(drift < 1e-12, "drift {drift}");
         let before = to_nalgebra(&sys.current_matrix());
@@ -442,4 +456,51 @@ fn bad_input_is_a_typed_error() {
         sys.unknowns_into(&[0, 1], &mut out),
         Err(CondenseError::Length { .. })
     ));
+}
+
+/// The capacitance form gathers the few loaded entries of `f` when the load
+/// is sparse (forces only at the needle) and streams columns otherwise; both
+/// must give the unknowns of the stored-`S` form.
+#[test]
+fn capacitance_queries_match_the_stored_form_for_sparse_and_dense_loads() {
+    let mut stored = system(&[9, 10], 40, UpdatePolicy::Immediate);
+    let mut capacitance = system(&[9, 10], 40, UpdatePolicy::Capacitance);
+    let nodes = stored.working_nodes().to_vec();
+    let n = stored.len();
+    for sys in [&mut stored, &mut capacitance] {
+        for (k, &node) in nodes[10..13].iter().enumerate() {
+            sys.rotate_node_by_angle(node, 0.4).unwrap();
+            sys.set_condition(node, 0, Condition::Displacement).unwrap();
+            sys.set_prescribed(sys.coordinate(node, 0).unwrap(), 0.01 * (k as f64 + 1.0))
+                .unwrap();
+        }
+        // One force-given needle coordinate carries a load: 4 loaded of N = 80.
+        sys.set_prescribed(sys.coordinate(nodes[11], 1).unwrap(), 0.5)
+            .unwrap();
+    }
+    let all: Vec<usize> = (0..n).collect();
+    for dense_load in [false, true] {
+        if dense_load {
+            for sys in [&mut stored, &mut capacitance] {
+                for &node in &nodes[20..40] {
+                    sys.set_prescribed(sys.coordinate(node, 1).unwrap(), -0.2)
+                        .unwrap();
+                }
+            }
+        }
+        let mut expected = vec![0.0; n];
+        stored.unknowns_into(&all, &mut expected).unwrap();
+        let mut got = vec![0.0; n];
+        capacitance.unknowns_into(&all, &mut got).unwrap();
+        let scale = expected.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        assert!(scale > 0.0);
+        for (a, b) in expected.iter().zip(&got) {
+            assert!((a - b).abs() <= 1e-11 * scale, "{dense_load}: {a} vs {b}");
+        }
+        let mut graphics = vec![0.0; n];
+        capacitance.unknowns_all_into(&mut graphics).unwrap();
+        for (a, b) in expected.iter().zip(&graphics) {
+            assert!((a - b).abs() <= 1e-11 * scale, "{dense_load}: {a} vs {b}");
+        }
+    }
 }

@@ -19,7 +19,11 @@ const TOLERANCE: f64 = 1e-9;
 
 #[test]
 fn needle_insertion_matches_needle_fem() {
-    for kind in [ElementKind::Tri3, ElementKind::Tri6] {
+    for (kind, policy) in [
+        (ElementKind::Tri3, UpdatePolicy::Buffered { max_pending: 4 }),
+        (ElementKind::Tri6, UpdatePolicy::Buffered { max_pending: 4 }),
+        (ElementKind::Tri6, UpdatePolicy::Capacitance),
+    ] {
         let mesh = RectangleMesh::uniform(0.075, 0.075, 6, 6)
             .unwrap()
             .build(kind)
@@ -40,9 +44,7 @@ fn needle_insertion_matches_needle_fem() {
             .filter(|n| !needle.contains(n))
             .step_by(2)
             .collect();
-        let mut system =
-            CondensedSystem::new(model, &visible, UpdatePolicy::Buffered { max_pending: 4 })
-                .unwrap();
+        let mut system = CondensedSystem::new(model, &visible, policy).unwrap();
         system.reserve(needle.len());
         // Insertion: each needle node is prefetched, added, and stuck; the tip one slips.
         for (k, &node) in needle.iter().enumerate() {

@@ -178,9 +178,9 @@ proptest! {
         seed in 0u64..1000,
         ops in prop::collection::vec(op(), 1..24),
         values in prop::collection::vec(-1.0f64..1.0, 8),
-        buffered in any::<bool>(),
+        form in 0usize..3,
     ) {
-        let policy = if buffered { UpdatePolicy::Buffered { max_pending: 3 } } else { UpdatePolicy::Immediate };
+        let policy = [UpdatePolicy::Immediate, UpdatePolicy::Buffered { max_pending: 3 }, UpdatePolicy::Capacitance][form];
         check(&[4, 5], seed, policy, &ops, &values)?;
     }
 
@@ -189,9 +189,9 @@ proptest! {
         seed in 0u64..1000,
         ops in prop::collection::vec(op(), 1..20),
         values in prop::collection::vec(-1.0f64..1.0, 9),
-        buffered in any::<bool>(),
+        form in 0usize..3,
     ) {
-        let policy = if buffered { UpdatePolicy::Buffered { max_pending: 4 } } else { UpdatePolicy::Immediate };
+        let policy = [UpdatePolicy::Immediate, UpdatePolicy::Buffered { max_pending: 4 }, UpdatePolicy::Capacitance][form];
         check(&[3, 3, 3], seed, policy, &ops, &values)?;
     }
 }
