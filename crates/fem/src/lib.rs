@@ -44,6 +44,9 @@
 //! - [`locate`]: [`Locator`]: point location, interpolation, and the sparse
 //!   marker operator $H$ with $u_\text{markers} = H u$.
 //! - [`stress`]: strains and stresses.
+//! - [`hyperelastic`], [`assemble_nonlinear`], [`solve_nonlinear`],
+//!   [`nonlinear_error`]: the compressible neo-Hookean model for strains
+//!   beyond the linear range (see below).
 //! - [`analytic`]: closed-form solutions (Lamé cylinder, Flamant, Timoshenko
 //!   cantilever, manufactured fields) used by the tests.
 //!
@@ -82,10 +85,70 @@
 //! # }
 //! ```
 //!
+//! ## Large strain: compressible neo-Hookean
+//!
+//! For strains above about 15 % the crate offers the hyperelastic energy
+//! $W = \frac{\mu}{2}(I_1 - 3) - \mu\ln J + \frac{\lambda}{2}(\ln J)^2$
+//! ($I_1 = \operatorname{tr} F^TF$, $J = \det F$) with the $\mu$, $\lambda$ of
+//! the linear [`Material`], so both models agree at small strain; the first
+//! Piola–Kirchhoff stress is $P = \mu(F - F^{-T}) + \lambda\ln J\,F^{-T}$ and
+//! the tangent $\mathbb{A} = \partial P/\partial F$ is written out in
+//! [`hyperelastic`]. Plane strain sets $F_{33} = 1$ (forces are totals over
+//! the thickness, as in the linear 2-D model); 3-D is the full model.
+//! [`HyperelasticAssembler`] assembles $f_\text{int}(u) = \int P\,\nabla_X N$
+//! and $K_T(u)$ in parallel, in the linear pattern; [`HyperelasticProblem`]
+//! wraps a [`LinearProblem`] (same constraints, supports and symbolic
+//! factorisation) and solves $f_\text{int}(u) = f_\text{ext}$ by Newton with
+//! line search and load steps, or by modified Newton with the linear
+//! problem's factor (cheap, many load cases, linear rate; it stops
+//! contracting at large strain of nearly incompressible bodies). Failure is
+//! a typed [`NonlinearError`].
+//!
+//! *Homogeneous stretch (the closed form the tests check).* A block
+//! stretched by $s$ along $x$ with traction-free sides has
+//! $F = \operatorname{diag}(s, l, 1)$ in plane strain; $P_{22} = 0$ gives
+//! $\mu(l^2 - 1) + \lambda\ln(s\,l) = 0$ for the lateral stretch $l$, and the
+//! nominal stress (force per reference area) is
+//! $P_{11} = \mu(s - 1/s) + \lambda\ln(s\,l)/s$. In 3-D uniaxial tension,
+//! $F = \operatorname{diag}(s, l, l)$, $\mu(l^2-1) + \lambda\ln(s\,l^2) = 0$ and
+//! $P_{11} = \mu(s - 1/s) + \lambda\ln(s\,l^2)/s$. Linearised in $s - 1$ both
+//! reduce to the linear model's $P_{11} = (\lambda + 2\mu)\varepsilon_{11} + \lambda\varepsilon_{22}(+\lambda\varepsilon_{33})$.
+//!
+//! ```
+//! use needle_fem::{
+//!     Assembler, Dirichlet, ElementKind, Face, Formulation, HyperelasticProblem, LinearProblem,
+//!     Material, Materials, NonlinearOptions, RectangleMesh,
+//! };
+//!
+//! # fn main() -> Result<(), needle_fem::NonlinearError> {
+//! let mesh = RectangleMesh::uniform(0.075, 0.075, 4, 4)?.build(ElementKind::Tri6)?;
+//! let formulation = Formulation::PlaneStrain { thickness: 0.0075 };
+//! let fixed = Dirichlet::fixed_face(&mesh, Face::Back);
+//! let mut loads = vec![0.0; mesh.dof_count()];
+//! let front = mesh.facets_on_face(Face::Front);
+//! needle_fem::load::add_traction(&mesh, formulation, &mut loads, &front, |_| [0.0, -3.0e3])?;
+//! let linear = LinearProblem::new(Assembler::new(mesh, formulation)?, vec![], fixed)?;
+//! let mut problem = HyperelasticProblem::new(linear)?;
+//! let materials = Materials::homogeneous(Material::new(25.3e3, 0.48)?);
+//!
+//! let newton = problem.solve_newton(&materials, &loads, None, &NonlinearOptions::default())?;
+//! // The cheap variant needs the linear factor.
+//! problem.linear_mut().factorize(&materials)?;
+//! let options = NonlinearOptions { max_iterations: 200, ..NonlinearOptions::default() };
+//! let modified = problem.solve_modified_newton(&materials, &[&loads], None, &options)?;
+//! let gap = newton.displacement.iter().zip(&modified[0].displacement)
+//!     .map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+//! assert!(gap < 1e-8 * newton.displacement.iter().fold(0.0_f64, |m, v| m.max(v.abs())));
+//! assert!(modified[0].iterations > newton.iterations);
+//! # Ok(())
+//! # }
+//! ```
+//!
 //! ## Limitations
 //!
-//! - Small-strain linear elasticity only; no contact, no geometric or
-//!   material nonlinearity (the truth world implements those effects itself).
+//! - Linear elasticity, plus the neo-Hookean model above (plane strain and
+//!   3-D; no plane stress); no contact and no needle–tissue friction (the
+//!   truth world implements those effects itself).
 //! - Simplices only; point location assumes straight-sided elements (all
 //!   meshes built here are).
 //! - Linear elements (T3, Tet4) lock as $\nu \to 0.5$; use T6/Tet10 for the
@@ -94,27 +157,35 @@
 
 pub mod analytic;
 pub mod assemble;
+pub mod assemble_nonlinear;
 pub mod dirichlet;
 pub mod element;
 pub mod error;
+pub mod hyperelastic;
 pub mod load;
 pub mod locate;
 pub mod material;
 pub mod mesh;
+pub mod nonlinear_error;
 pub mod norm;
 pub mod solve;
+pub mod solve_nonlinear;
 pub mod stress;
 pub mod support;
 
 pub use assemble::{Assembler, StiffnessPattern};
+pub use assemble_nonlinear::HyperelasticAssembler;
 pub use dirichlet::Dirichlet;
 pub use element::ElementKind;
 pub use error::FemError;
+pub use hyperelastic::NeoHookean;
 pub use load::LineDensity;
 pub use locate::{Location, Locator};
 pub use material::{Constitutive, Formulation, Material, Materials, Parameter};
 pub use mesh::{
     BoundaryFacet, Face, MarkerGrid, Mesh, Mesh2, Mesh3, QualityReport, RectangleMesh, SlabMesh,
 };
+pub use nonlinear_error::NonlinearError;
 pub use solve::{LinearProblem, Solution};
+pub use solve_nonlinear::{HyperelasticProblem, NonlinearOptions, NonlinearSolution};
 pub use support::Support;
