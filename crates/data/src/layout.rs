@@ -16,6 +16,8 @@ pub const MARKERS: &str = "markers.csv";
 pub const FRAMES: &str = "frames";
 /// The optional calibration folder.
 pub const CALIBRATION: &str = "calibration";
+/// The calibration target description inside the calibration folder.
+pub const CALIBRATION_TARGET: &str = "target.ron";
 /// The optional unconfined compression curve.
 pub const COMPRESSION: &str = "compression.csv";
 

@@ -88,6 +88,7 @@
 //! cargo +nightly fuzz run read_bundle -- -max_total_time=60
 //! ```
 
+mod calibration;
 mod campaign;
 mod error;
 pub mod layout;
@@ -99,6 +100,7 @@ mod report;
 mod types;
 mod write;
 
+pub use calibration::{CalibrationTarget, read_calibration_target};
 pub use campaign::{
     BundleBuilder, Campaign, FrameFile, FrameView, LoadedBundle, MarkerSet, MarkerTrack, TrialData,
 };

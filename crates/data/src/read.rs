@@ -6,6 +6,7 @@ use std::fs;
 use std::io::ErrorKind;
 use std::path::{Path, PathBuf};
 
+use crate::calibration::check_calibration_target;
 use crate::campaign::{Campaign, FrameFile, LoadedBundle, MarkerSet, MarkerTrack, TrialData};
 use crate::error::BundleError;
 use crate::layout::{
@@ -101,6 +102,7 @@ fn load(root: &Path) -> (Option<Campaign>, ValidationReport) {
 
     let calibration = root.join(CALIBRATION);
     let calibration_dir = if calibration.is_dir() {
+        check_calibration_target(root, &mut issues);
         Some(calibration)
     } else {
         if calibration.exists() {

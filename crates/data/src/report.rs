@@ -81,6 +81,9 @@ pub enum IssueKind {
     /// Something legal but probably not intended (an unknown file, a repeated
     /// timestamp, a marker off the phantom); a warning.
     Suspicious,
+    /// `calibration/target.ron` is not valid RON of the target description,
+    /// has an unusable value, or names an image that is not there.
+    BadCalibration,
     /// Further issues of one kind in one file that were counted but not listed.
     Suppressed,
 }

@@ -60,6 +60,14 @@ pub enum SynthError {
         /// Iterations done.
         iterations: usize,
     },
+    /// Rendering or writing a camera frame or calibration image failed.
+    #[error("rendering {what}: {reason}")]
+    Render {
+        /// Which image.
+        what: String,
+        /// The vision crate's message.
+        reason: String,
+    },
     /// Writing the bundle failed (or it would overwrite one).
     #[error("writing the bundle: {0}")]
     Bundle(#[from] needle_data::BundleError),

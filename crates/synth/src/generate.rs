@@ -10,8 +10,10 @@ use needle_data::{
 };
 use rayon::prelude::*;
 
+use crate::camera::TrueCamera;
 use crate::effect::material_nonlinearity::uniaxial_nominal_stress;
 use crate::error::SynthError;
+use crate::frames::{Staging, render_trial_frames, selected_frames, write_calibration};
 use crate::needle::{NeedleRun, insert};
 use crate::probe::{ProbeRun, press};
 use crate::scenario::Scenario;
@@ -29,6 +31,8 @@ pub struct Summary {
     pub marker_rows: usize,
     /// Rows of all `tool.csv` files.
     pub tool_rows: usize,
+    /// Rendered camera frames of all trials.
+    pub frames: usize,
     /// Degrees of freedom of the truth.
     pub dofs: usize,
     /// Linear (or Newton) solves of the needle insertions.
@@ -148,15 +152,70 @@ pub fn generate(
         builder.compression(curve);
     }
     let mut truths = Vec::new();
-    let (mut marker_rows, mut tool_rows) = (0, 0);
+    let (mut marker_rows, mut tool_rows, mut frame_count) = (0, 0, 0);
+    // Frames and calibration images are rendered here first; the bundle
+    // writer copies them.
+    let staging = match &scenario.frames {
+        Some(_) => Some(Staging::beside(bundle_out)?),
+        None => None,
+    };
+    let camera = TrueCamera::new(scenario);
+    let mut camera_truth = None;
+    if let (Some(frames), Some(staging)) = (&scenario.frames, &staging) {
+        let dir = staging.path().join(needle_data::layout::CALIBRATION);
+        camera_truth = Some(write_calibration(scenario, frames, &camera, &dir)?);
+        builder.calibration_dir(dir);
+    }
     let order = campaign_order(&probes, &needles);
+    let mut seen = [0, 0];
     for (stream, &(kind, i)) in order.iter().enumerate() {
         let mut instruments = Instruments::new(*s, scenario.seed, stream as u64);
-        let (trial, truth) = if kind == TrialKind::Probe {
+        let (mut trial, truth) = if kind == TrialKind::Probe {
             probe_trial(&world, &probes[i], i, &mut instruments)
         } else {
             needle_trial(&world, &needles[i], i, &mut instruments)
         };
+        let k = usize::from(kind == TrialKind::Needle);
+        seen[k] += 1;
+        if let (Some(frames), Some(staging)) = (&scenario.frames, &staging) {
+            let selection = [frames.probes, frames.needles][k];
+            if seen[k] <= selection.count {
+                let (grid, table, velocity, end) = if kind == TrialKind::Probe {
+                    let r = &probes[i];
+                    (
+                        &r.indentations,
+                        &r.markers,
+                        r.probe.velocity,
+                        r.probe.indentation,
+                    )
+                } else {
+                    let r = &needles[i];
+                    (
+                        &r.depths,
+                        &r.markers,
+                        r.plan.velocity,
+                        scenario.needles.depth,
+                    )
+                };
+                let times = sample_times(s.camera_rate, end / velocity);
+                let numbers = selected_frames(times.len(), selection.every);
+                let dir = staging.path().join(&trial.trial.id);
+                render_trial_frames(
+                    &camera,
+                    &frames.render_options(),
+                    scenario.seed,
+                    stream as u64,
+                    &numbers,
+                    |number| {
+                        let (j, w) = bracket(grid, (velocity * times[number as usize]).min(end));
+                        positions_at(&world, table, j, w).collect()
+                    },
+                    &dir,
+                    &mut trial,
+                )?;
+                frame_count += numbers.len();
+            }
+        }
         marker_rows += trial.markers.as_ref().map_or(0, |m| m.row_count());
         tool_rows += trial.tool.len();
         let slot = builder.trial(trial.trial.clone());
@@ -176,6 +235,7 @@ pub fn generate(
         stated_noise: stated,
         trials: truths,
         compression_modulus,
+        camera: camera_truth,
     };
     builder.write(bundle_out, WriteOptions::default())?;
     let text = ron::ser::to_string_pretty(&truth, ron::ser::PrettyConfig::default())
@@ -185,6 +245,7 @@ pub fn generate(
         trials: order.len(),
         marker_rows,
         tool_rows,
+        frames: frame_count,
         dofs: world.body.dof_count(),
         needle_solves,
         seconds: started.elapsed().as_secs_f64(),
@@ -225,7 +286,7 @@ pub fn respond(scenario: &Scenario) -> Result<Vec<TrialResponse>, SynthError> {
                     id: probe_id(i),
                     kind,
                     states: r.indentations.clone(),
-                    markers: r.markers.clone(),
+                    markers: in_plane(&r.markers),
                     force: r.force.clone(),
                     peak_strain: peak_strain(&world.body, &r.last_displacement),
                 }
@@ -236,13 +297,21 @@ pub fn respond(scenario: &Scenario) -> Result<Vec<TrialResponse>, SynthError> {
                     id: needle_id(i, &r.plan),
                     kind,
                     states: r.depths.clone(),
-                    markers: r.markers.clone(),
+                    markers: in_plane(&r.markers),
                     force: r.force.clone(),
                     peak_strain: peak_strain(&world.body, &r.last_displacement),
                 }
             }
         })
         .collect())
+}
+
+/// The in-plane (x, y) part of marker displacement tables.
+fn in_plane(table: &[Vec<[f64; 3]>]) -> Vec<Vec<[f64; 2]>> {
+    table
+        .iter()
+        .map(|state| state.iter().map(|d| [d[0], d[1]]).collect())
+        .collect()
 }
 
 /// Campaign order: by day, probes before needles on the same day; each
@@ -376,13 +445,14 @@ fn run_needles(
     Ok((runs, solves))
 }
 
-/// Interpolated marker positions (rest + displacement) between states.
+/// Interpolated marker positions (rest + displacement) between states:
+/// x, y on the top face and the lift z out of it.
 fn positions_at<'a>(
     world: &'a World,
-    table: &'a [Vec<[f64; 2]>],
+    table: &'a [Vec<[f64; 3]>],
     i: usize,
     w: f64,
-) -> impl Iterator<Item = [f64; 2]> + 'a {
+) -> impl Iterator<Item = [f64; 3]> + 'a {
     let (a, b) = (&table[i], &table[(i + 1).min(table.len() - 1)]);
     world
         .markers
@@ -392,6 +462,7 @@ fn positions_at<'a>(
             [
                 m[0] + (1.0 - w) * a[0] + w * b[0],
                 m[1] + (1.0 - w) * a[1] + w * b[1],
+                (1.0 - w) * a[2] + w * b[2],
             ]
         })
 }
@@ -405,7 +476,7 @@ fn lerp(table: &[f64], i: usize, w: f64) -> f64 {
 fn track(
     world: &World,
     grid: &[f64],
-    table: &[Vec<[f64; 2]>],
+    table: &[Vec<[f64; 3]>],
     times: &[f64],
     coordinate: impl Fn(f64) -> f64,
     instruments: &mut Instruments,
@@ -418,6 +489,7 @@ fn track(
         let rows: Vec<(u32, [f64; 2])> = positions_at(world, table, i, w)
             .enumerate()
             .map(|(id, p)| {
+                let p = [p[0], p[1]];
                 let seen = lens.map_or(p, |l| l.distort(p));
                 (id as u32, instruments.marker(seen))
             })

@@ -33,15 +33,20 @@
 //! - Needle shaft loads act at the material points whose deformed images
 //!   lie on the needle ([`needle`]); the tool force is their integral.
 //! - Measurements: force sensor noise and quantisation, Gaussian marker
-//!   noise, at the sensor and camera rates ([`sensor`]).
+//!   noise, at the sensor and camera rates ([`sensor`]); when the scenario
+//!   asks for them, camera frames of some trials rendered through the true
+//!   camera, and calibration images of a dot-grid target ([`camera`],
+//!   [`frames`]).
 //!
 //! # Entry points
 //!
 //! [`load_scenario`], [`Scenario::paper_default`], [`Scenario::quick`],
 //! [`generate`].
 
+pub mod camera;
 pub mod effect;
 pub mod error;
+pub mod frames;
 pub mod generate;
 pub mod needle;
 pub mod scenario;
@@ -59,6 +64,7 @@ mod world;
 #[cfg(test)]
 mod tests;
 
+pub use camera::{CameraFrames, FrameSelection, TrueCamera};
 pub use effect::{EffectId, Effects};
 pub use error::SynthError;
 pub use generate::{Stage, Summary, TrialResponse, generate, respond};

@@ -48,8 +48,9 @@ pub(crate) struct NeedleRun {
     pub load: ShaftLoad,
     /// Tip depth (spatial y) of each state (m).
     pub depths: Vec<f64>,
-    /// Marker displacements (x, y) of each state (m).
-    pub markers: Vec<Vec<[f64; 2]>>,
+    /// Marker displacements (x, y, z) of each state (m); z is zero in
+    /// the plane-strain truth.
+    pub markers: Vec<Vec<[f64; 3]>>,
     /// Spatial y of the entry point of each state (m).
     pub entry: Vec<f64>,
     /// Force at the base, the integral of the shaft load (N).
@@ -89,7 +90,7 @@ pub(crate) fn insert(
                 plan: *plan,
                 load,
                 depths: vec![0.0],
-                markers: vec![vec![[0.0; 2]; world.markers.len()]],
+                markers: vec![vec![[0.0; 3]; world.markers.len()]],
                 entry: vec![0.0],
                 force: vec![0.0],
                 tip_material: [plan.line, 0.0, 0.0],

@@ -1,5 +1,6 @@
 //! Built-in scenarios: the paper's default campaign and a quick one for CI.
 
+use crate::camera::CameraFrames;
 use crate::effect::{
     CompliantSupport, EffectId, Effects, LayeredStiffness, LensDistortion, MaterialNonlinearity,
     MaterialStiffening, OutOfPlane, PlatformFriction, TipCuttingForce, VelocityDependentFriction,
@@ -14,7 +15,9 @@ impl Scenario {
     /// a compression test, four probes, insertions at 1, 3, 5, 7 and 9 mm/s
     /// on two days; with the effects the paper reports: out-of-plane
     /// deformation, velocity-dependent friction, the tip peak and
-    /// stiffening over days. Stored too as
+    /// stiffening over days; camera frames of the four probes (one frame in
+    /// ten, 10 each) and of the first insertion (one in 150, 11 frames),
+    /// with calibration images. Stored too as
     /// `fixtures/scenarios/paper-default.ron`.
     pub fn paper_default() -> Self {
         Scenario {
@@ -83,11 +86,13 @@ impl Scenario {
                 }),
                 ..Effects::none()
             },
+            frames: Some(CameraFrames::paper(4, 10, 1, 150)),
         }
     }
 
     /// A small campaign of the same phantom for CI: two probes, two
-    /// velocities on one day, 20 mm insertions.
+    /// velocities on one day, 20 mm insertions; camera frames of the first
+    /// probe only (one in 18: 6 frames), with calibration images.
     pub fn quick() -> Self {
         let mut s = Self::paper_default();
         s.name = "quick".into();
@@ -103,6 +108,7 @@ impl Scenario {
             first_line: 0.02,
             line_spacing: 0.02,
         };
+        s.frames = Some(CameraFrames::paper(1, 18, 0, 1));
         s
     }
 
@@ -118,11 +124,13 @@ impl Scenario {
     }
 
     /// The paper's campaign with no effect at all: the plane-strain null
-    /// truth.
+    /// truth, without camera frames (so are the effect-alone and two-effect
+    /// scenarios built from it).
     pub fn null() -> Self {
         Scenario {
             name: "null".into(),
             effects: Effects::none(),
+            frames: None,
             ..Self::paper_default()
         }
     }

@@ -31,8 +31,9 @@ pub(crate) struct ProbeRun {
     pub probe: ProbeTrial,
     /// Indentation of each state (m).
     pub indentations: Vec<f64>,
-    /// Marker displacements (x, y) of each state (m).
-    pub markers: Vec<Vec<[f64; 2]>>,
+    /// Marker displacements (x, y, z) of each state (m); z is zero in
+    /// the plane-strain truth.
+    pub markers: Vec<Vec<[f64; 3]>>,
     /// Probe force along +y (N).
     pub force: Vec<f64>,
     /// Moment about z at the probe centre (N m).
@@ -52,7 +53,7 @@ pub(crate) fn press(world: &World, probe: &ProbeTrial) -> Result<ProbeRun, Synth
     let mut run = ProbeRun {
         probe: *probe,
         indentations: vec![0.0],
-        markers: vec![vec![[0.0; 2]; world.markers.len()]],
+        markers: vec![vec![[0.0; 3]; world.markers.len()]],
         force: vec![0.0],
         moment: vec![0.0],
         last_displacement: vec![0.0; dofs],

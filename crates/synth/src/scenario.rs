@@ -9,6 +9,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+use crate::camera::CameraFrames;
 use crate::effect::Effects;
 use crate::error::SynthError;
 
@@ -37,6 +38,9 @@ pub struct Scenario {
     pub needles: Needles,
     /// The physical effects present in the truth.
     pub effects: Effects,
+    /// Rendered camera frames and calibration images, if asked for.
+    #[serde(default)]
+    pub frames: Option<CameraFrames>,
 }
 
 /// The phantom slab and its (baseline) material.
@@ -342,6 +346,9 @@ impl Scenario {
             )?;
         }
         self.effects.validate(&c, self)?;
+        if let Some(frames) = &self.frames {
+            frames.check(&c, self)?;
+        }
         Ok(())
     }
 

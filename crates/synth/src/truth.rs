@@ -5,6 +5,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::effect::EffectId;
+use crate::frames::CameraTruth;
 use crate::scenario::Scenario;
 
 /// Everything true about a generated campaign.
@@ -25,6 +26,9 @@ pub struct GroundTruth {
     pub trials: Vec<TrialTruth>,
     /// The compression test's modulus, if the test was done.
     pub compression_modulus: Option<f64>,
+    /// The true camera and calibration target, when frames were rendered.
+    #[serde(default)]
+    pub camera: Option<CameraTruth>,
 }
 
 /// The truth's mesh.

@@ -180,14 +180,11 @@ impl<'s> World<'s> {
         })
     }
 
-    /// Displacement of every marker in the plane (x, y).
-    pub fn marker_displacements(&self, u: &[f64]) -> Vec<[f64; 2]> {
+    /// Displacement of every marker (x, y, z; z is zero in plane strain).
+    pub fn marker_displacements(&self, u: &[f64]) -> Vec<[f64; 3]> {
         self.marker_locations
             .iter()
-            .map(|at| {
-                let v = self.body.value(at, u);
-                [v[0], v[1]]
-            })
+            .map(|at| self.body.value(at, u))
             .collect()
     }
 }

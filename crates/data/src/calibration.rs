@@ -1,0 +1,159 @@
+//! The calibration folder's target description, `calibration/target.ron`:
+//! the dot-grid target the calibration images show, which image shows it
+//! lying on the phantom top face, and where it lies there.
+//!
+//! On the target plane, dot `(i, j)` (column `i`, row `j`) has its centre at
+//! `(i pitch, j pitch)`. In the face view the target lies flat on the top
+//! face with its axes along the phantom's x and y, so dot `(i, j)` is at
+//! `face_origin + (i pitch, j pitch)` in the phantom frame, and the pose of
+//! the top face follows from that view's pose $(R, t)$ as
+//! $(R,\ t - R\,(o_x, o_y, 0))$.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::BundleError;
+use crate::layout::{CALIBRATION, CALIBRATION_TARGET};
+use crate::report::{Collector, IssueKind, Severity};
+
+/// `calibration/target.ron`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CalibrationTarget {
+    /// Dots per row (along the target's x).
+    pub columns: usize,
+    /// Rows of dots (along the target's y).
+    pub rows: usize,
+    /// Centre-to-centre distance of neighbouring dots (m).
+    pub pitch: f64,
+    /// Dot diameter (m).
+    pub dot_diameter: f64,
+    /// The calibration images, PNG files in the calibration folder, in
+    /// view order.
+    pub images: Vec<String>,
+    /// Index in `images` of the view with the target lying on the top face.
+    pub face_view: usize,
+    /// Phantom-frame position (x, y) of dot `(0, 0)` in the face view (m).
+    pub face_origin: (f64, f64),
+}
+
+impl CalibrationTarget {
+    /// What is wrong with the description, as `(field, reason)`; empty when
+    /// it is usable.
+    pub fn problems(&self) -> Vec<(&'static str, String)> {
+        let mut problems = Vec::new();
+        if self.columns < 2 || self.rows < 2 {
+            problems.push((
+                "columns/rows",
+                format!("a {} x {} grid has no extent", self.columns, self.rows),
+            ));
+        }
+        if !(self.pitch.is_finite() && self.pitch > 0.0) {
+            problems.push(("pitch", format!("{} must be positive", self.pitch)));
+        }
+        if !(self.dot_diameter.is_finite()
+            && self.dot_diameter > 0.0
+            && self.dot_diameter < self.pitch)
+        {
+            problems.push((
+                "dot_diameter",
+                format!(
+                    "{} must be positive and less than the pitch",
+                    self.dot_diameter
+                ),
+            ));
+        }
+        if self.face_view >= self.images.len() {
+            problems.push((
+                "face_view",
+                format!(
+                    "{} is not an index of the {} images",
+                    self.face_view,
+                    self.images.len()
+                ),
+            ));
+        }
+        if !(self.face_origin.0.is_finite() && self.face_origin.1.is_finite()) {
+            problems.push(("face_origin", "must be finite".into()));
+        }
+        for image in &self.images {
+            if !image.ends_with(".png") || image.contains(['/', '\\']) || image.starts_with('.') {
+                problems.push((
+                    "images",
+                    format!("{image:?} is not a PNG file name in the calibration folder"),
+                ));
+            }
+        }
+        problems
+    }
+}
+
+/// Reads and checks `calibration/target.ron` of the bundle at `root`, if the
+/// bundle has one; every problem goes to `issues`.
+pub(crate) fn check_calibration_target(
+    root: &Path,
+    issues: &mut Collector,
+) -> Option<CalibrationTarget> {
+    let relative = Path::new(CALIBRATION).join(CALIBRATION_TARGET);
+    let path = root.join(&relative);
+    if !path.is_file() {
+        return None;
+    }
+    let mut error = |field: Option<&str>, message: String| {
+        issues.add(
+            Severity::Error,
+            IssueKind::BadCalibration,
+            &relative,
+            None,
+            field,
+            message,
+        )
+    };
+    let text = match std::fs::read_to_string(&path) {
+        Ok(text) => text,
+        Err(e) => {
+            error(None, e.to_string());
+            return None;
+        }
+    };
+    let target: CalibrationTarget = match ron::from_str(&text) {
+        Ok(target) => target,
+        Err(e) => {
+            error(None, e.to_string());
+            return None;
+        }
+    };
+    let mut fine = true;
+    for (field, reason) in target.problems() {
+        error(Some(field), reason);
+        fine = false;
+    }
+    for image in &target.images {
+        if !root.join(CALIBRATION).join(image).is_file() {
+            error(
+                Some("images"),
+                format!("{image} is not in the calibration folder"),
+            );
+            fine = false;
+        }
+    }
+    fine.then_some(target)
+}
+
+/// Reads `calibration/target.ron` of the bundle at `root`: `None` when the
+/// bundle has none, [`BundleError::Invalid`] when it is malformed, names a
+/// missing image or has an unusable value.
+pub fn read_calibration_target(
+    root: impl AsRef<Path>,
+) -> Result<Option<CalibrationTarget>, BundleError> {
+    let root = root.as_ref();
+    let mut issues = Collector::default();
+    let target = check_calibration_target(root, &mut issues);
+    if issues.has_errors() {
+        return Err(BundleError::Invalid {
+            report: issues.finish(root),
+        });
+    }
+    Ok(target)
+}
