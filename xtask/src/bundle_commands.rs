@@ -4,8 +4,10 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use needle_data::{BundleError, read_bundle, validate_bundle};
-use needle_vision::{Calibration, TrackFramesOptions, track_frames_to_csv};
+use needle_data::{BundleError, WriteOptions, read_bundle, validate_bundle, write_markers_csv};
+use needle_vision::Calibration;
+
+use crate::camera::{calibrate_from_bundle, track_trial};
 
 /// Options of `cargo xtask validate`.
 #[derive(Args)]
@@ -35,9 +37,10 @@ pub struct TrackArgs {
     /// The trial to track.
     #[arg(long)]
     trial: String,
-    /// Camera calibration (RON, as written by `needle_vision::Calibration::save`).
+    /// Camera calibration (RON, as written by `needle_vision::Calibration::save`);
+    /// default: calibrate from the bundle's `calibration/` folder.
     #[arg(long)]
-    calibration: PathBuf,
+    calibration: Option<PathBuf>,
     /// The `markers.csv` to write (format 1, with `sx,sy`); must not exist.
     #[arg(long)]
     out: PathBuf,
@@ -56,15 +59,18 @@ pub fn track(args: &TrackArgs) -> Result<(), String> {
             args.trial
         ));
     }
-    let calibration = Calibration::load(&args.calibration).map_err(|e| e.to_string())?;
-    let tracked = track_frames_to_csv(
-        &bundle.frames_dir(&args.trial),
-        &calibration,
-        bundle.campaign.markers_rest.as_slice(),
-        &args.out,
-        &TrackFramesOptions::default(),
-    )
-    .map_err(|e| e.to_string())?;
+    let calibration = match &args.calibration {
+        Some(path) => Calibration::load(path).map_err(|e| e.to_string())?,
+        None => calibrate_from_bundle(&bundle.root)?.ok_or_else(|| {
+            format!(
+                "{}: no --calibration given and the bundle has no calibration/ folder",
+                args.bundle.display()
+            )
+        })?,
+    };
+    let tracked = track_trial(&bundle, &args.trial, &calibration)?;
+    write_markers_csv(&args.out, &tracked.observations, WriteOptions::default())
+        .map_err(|e| e.to_string())?;
     println!(
         "tracked {} marker positions into {}; {} marker-frames lost",
         tracked.observations.len(),

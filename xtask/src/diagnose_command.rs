@@ -30,6 +30,10 @@ pub struct DiagnoseArgs {
     /// At most this many camera frames of each trial enter the fit (0: all).
     #[arg(long, default_value_t = DiagnoseOptions::default().frames_per_trial)]
     frames_per_trial: usize,
+    /// Model mesh: elements this many times smaller than the marker
+    /// spacing (rerun with a larger value to check mesh convergence).
+    #[arg(long, default_value_t = DiagnoseOptions::default().refinement)]
+    refinement: usize,
     /// Output folder (must not exist); default: a new folder under `out/`.
     #[arg(long)]
     out: Option<PathBuf>,
@@ -47,6 +51,7 @@ pub fn run(args: &DiagnoseArgs) -> Result<(), String> {
     let options = DiagnoseOptions {
         add_recommended: args.add_recommended,
         frames_per_trial: args.frames_per_trial,
+        refinement: args.refinement,
         ..DiagnoseOptions::default()
     };
     let result = diagnose(&args.bundle, &model, &options).map_err(|e| e.to_string())?;

@@ -3,7 +3,9 @@
 //! final step, where the residual is on the phantom, and the residual
 //! against every variable it may depend on.
 
-use needle_diagnose::{DiagnosisRun, MarkerResidual};
+use needle_diagnose::{
+    DiagnosisRun, MarkerResidual, energy_share_of_worst, residual_concentration,
+};
 use plotters::prelude::*;
 
 use crate::report::Report;
@@ -46,11 +48,19 @@ pub fn print_ladder(run: &DiagnosisRun) {
     for row in ladder_rows(run) {
         println!("| {} |", row.join(" | "));
     }
+    for warning in &run.diagnosis.warnings {
+        println!("warning: {warning}");
+    }
 }
 
 /// Adds the diagnosis sections to `report`, numbered from `number`.
 pub fn add_sections(report: &mut Report, run: &DiagnosisRun, number: &str) -> Result<(), String> {
     let d = &run.diagnosis;
+    let warnings: String = d
+        .warnings
+        .iter()
+        .map(|w| format!(" <b>Warning:</b> {w}."))
+        .collect();
     report.section(
         &format!("{number} Diagnosis: compare the model with the measurements"),
         &format!(
@@ -58,7 +68,8 @@ pub fn add_sections(report: &mut Report, run: &DiagnosisRun, number: &str) -> Re
              by the noise ({:?}). Candidates (catalog effects not in the model) are ranked \
              by a score test at the fit and confirmed by refitting with the effect added; \
              an effect is named only when its likelihood-ratio p-value is below {:.2e} \
-             (a family-wise false-alarm rate of 1%). Final model {:?}; verdict <b>{:?}</b>.",
+             (a family-wise false-alarm rate of 1%). Final model {:?}; verdict <b>{:?}</b>.\
+             {warnings}",
             d.bundle, d.noise, d.threshold_p, d.model, d.verdict
         ),
         &[ladder_plot(run)?],
@@ -121,10 +132,15 @@ pub fn add_sections(report: &mut Report, run: &DiagnosisRun, number: &str) -> Re
     );
     report.section(
         &format!("{number}d Where the final model fails"),
-        "Residual (model minus data) of the final model: the RMS per marker over all \
-         frames (colour), with the mean residual vector of the worst frame (arrows); then \
-         the marker residual against every variable it may depend on, and the base-force \
-         residual against tip depth per insertion.",
+        &format!(
+            "Residual (model minus data) of the final model: the RMS per marker over all \
+             frames (colour), with the residual vectors of the worst frame (arrows); then \
+             the marker residual against every variable it may depend on, the base-force \
+             residual against tip depth per insertion, and where the residual energy \
+             concentrates compared with where the markers are (last panel): the worst 10% \
+             of the markers hold {:.0}% of it (an even residual: 10%).",
+            100.0 * energy_share_of_worst(&residual_concentration(&run.marker_residuals), 0.1)
+        ),
         &[residual_map(&run.marker_residuals)?, residual_panels(run)?],
     );
     Ok(())
@@ -319,17 +335,19 @@ fn residual_map(residuals: &[MarkerResidual]) -> Result<String, String> {
     Ok(svg)
 }
 
-/// Marker residual magnitude against six variables, and the base-force
-/// residual against tip depth.
+/// Marker residual magnitude against seven variables, the base-force
+/// residual against tip depth, and the concentration curve of the residual
+/// energy over the markers.
 fn residual_panels(run: &DiagnosisRun) -> Result<String, String> {
     type Pick = fn(&MarkerResidual) -> f64;
-    let variables: [(&str, Pick); 6] = [
+    let variables: [(&str, Pick); 7] = [
         ("time (s)", |r| r.t),
         ("tip depth (mm)", |r| r.tip_depth * 1e3),
         ("velocity (mm/s)", |r| r.velocity * 1e3),
         ("day", |r| r.day),
         ("distance from tool (mm)", |r| r.distance_from_tool * 1e3),
         ("image radius (mm)", |r| r.radius * 1e3),
+        ("marker depth y (mm)", |r| r.y * 1e3),
     ];
     let mut svg = String::new();
     {
@@ -351,10 +369,44 @@ fn residual_panels(run: &DiagnosisRun) -> Result<String, String> {
             .map(|r| (r.tip_depth * 1e3, r.rx.hypot(r.ry).copysign(r.ry) * 1e3))
             .filter(|(x, y)| x.is_finite() && y.is_finite())
             .collect();
-        scatter(&panels[6], &forces, "tip depth (mm)", "force residual (mN)")?;
+        scatter(&panels[7], &forces, "tip depth (mm)", "force residual (mN)")?;
+        concentration_panel(&panels[8], &residual_concentration(&run.marker_residuals))?;
         root.present().map_err(draw_error)?;
     }
     Ok(svg)
+}
+
+/// The concentration curve (worst markers first) against the diagonal an
+/// even residual would follow.
+fn concentration_panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    curve: &[(f64, f64)],
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    let fail = |e: DrawingAreaErrorKind<DB::ErrorType>| format!("plotting concentration: {e:?}");
+    let mut chart = ChartBuilder::on(area)
+        .margin(8)
+        .x_label_area_size(32)
+        .y_label_area_size(48)
+        .build_cartesian_2d(0.0..1.0, 0.0..1.0)
+        .map_err(fail)?;
+    chart
+        .configure_mesh()
+        .x_desc("share of markers, worst first")
+        .y_desc("share of residual energy")
+        .x_labels(5)
+        .y_labels(5)
+        .draw()
+        .map_err(fail)?;
+    chart
+        .draw_series(LineSeries::new([(0.0, 0.0), (1.0, 1.0)], BLACK.mix(0.4)))
+        .map_err(fail)?;
+    chart
+        .draw_series(LineSeries::new(curve.iter().copied(), RED.stroke_width(2)))
+        .map_err(fail)?;
+    Ok(())
 }
 
 fn scatter<DB: DrawingBackend>(

@@ -11,6 +11,7 @@
 //! - `cargo xtask diagnose --bundle DIR ...`: the diagnosis loop.
 
 mod bundle_commands;
+mod camera;
 mod diagnose_command;
 mod diagnosis_report;
 mod output;

@@ -5,12 +5,12 @@
 //! factorisations.
 //!
 //! In 3-D the slab spans $z \in [-t/2, t/2]$: markers at $z = t/2$, the
-//! needle at $z = 0$, a probe force spread evenly over the thickness along
-//! the line $(x_\text{tip}, y_\text{tip}, z)$ (a 3-D point force would be
-//! singular), the foundation of `platform_friction` as springs on the
-//! bottom face and compliant supports as springs on the fixed faces. In 2-D
-//! the foundation acts over the plane's area, so one stiffness per unit area
-//! means the same platform in both.
+//! needle at $z = 0$, a probe force spread over its contact patch as under
+//! a rigid flat punch (across the width, evenly through the thickness),
+//! the foundation of `platform_friction` as springs on the bottom face and
+//! compliant supports as springs on the fixed faces. In 2-D the foundation
+//! acts over the plane's area, so one stiffness per unit area means the same
+//! platform in both.
 
 use std::sync::{Arc, Mutex};
 
@@ -23,18 +23,27 @@ use needle_fem::{
 use crate::effect::SupportSpec;
 use crate::error::DiagnoseError;
 
-/// Factorisations kept per body (one per distinct normalised material
-/// field and support).
-const CACHE_SIZE: usize = 48;
+/// Factorisations kept per plane body (one per distinct normalised
+/// material field and support).
+const PLANE_CACHE_SIZE: usize = 48;
+/// Factorisations kept per 3-D slab: each holds a Cholesky factor of
+/// about 100 MB for the default marker grid, so 48 of them took 5 GB.
+const SLAB_CACHE_SIZE: usize = 8;
+
+/// Gauss-Chebyshev points across a probe's contact patch: the rigid flat
+/// punch's pressure $p(s) \propto 1/\sqrt{1 - (2s/a)^2}$ is the rule's
+/// weight, so equal forces at $s_i = \tfrac a2 \cos\frac{(2i+1)\pi}{2n}$
+/// integrate it exactly for polynomial test functions of degree $< 2n$.
+const PATCH_POINTS: usize = 8;
 
 /// Identity of a factorisation: the exact bits of every normalised element
 /// modulus, Poisson's ratio and the normalised supports.
 #[derive(Debug, Clone, PartialEq, Eq)]
 struct Key(Vec<u64>);
 
-/// Marker responses to unit probe forces at one tip, along x and along y,
-/// keyed by the tip's bits.
-type ProbeResponses = ([u64; 2], [Vec<[f64; 2]>; 2]);
+/// Marker responses to unit probe forces on one contact patch, along x and
+/// along y, keyed by the bits of the contact point and the patch width.
+type ProbeResponses = ([u64; 3], [Vec<[f64; 2]>; 2]);
 
 /// A kept factorisation with the probe responses already solved on it
 /// (they depend on nothing else, so a fit solves each tip once per
@@ -54,6 +63,8 @@ pub(crate) struct Body<const D: usize> {
     mesh: Mesh<D>,
     formulation: Formulation,
     thickness: f64,
+    /// Largest x and y of the mesh (the outline is `[0, x] x [0, y]`).
+    extent: [f64; 2],
     /// In-plane centroid and y extent of every element (effects see these).
     pub centroids: Vec<[f64; 2]>,
     pub element_y: Vec<[f64; 2]>,
@@ -129,10 +140,15 @@ impl<const D: usize> Body<D> {
             vec![],
             fixed_dirichlet(&mesh, &fixed_faces),
         )?;
+        let extent = mesh
+            .nodes()
+            .iter()
+            .fold([0.0f64; 2], |e, x| [e[0].max(x[0]), e[1].max(x[1])]);
         Ok(Self {
             mesh,
             formulation,
             thickness,
+            extent,
             centroids,
             element_y,
             marker_weights,
@@ -196,7 +212,12 @@ impl<const D: usize> Body<D> {
             probes: Mutex::new(Vec::new()),
         });
         let mut cache = self.cache.lock().expect("cache lock");
-        if cache.len() >= CACHE_SIZE {
+        let capacity = if D == 2 {
+            PLANE_CACHE_SIZE
+        } else {
+            SLAB_CACHE_SIZE
+        };
+        if cache.len() >= capacity {
             cache.remove(0);
         }
         cache.push((key, Arc::clone(&entry)));
@@ -248,9 +269,10 @@ impl<const D: usize> Body<D> {
         &self,
         locator: &Locator<'_, D>,
         factorized: &Factorized<D>,
-        tip: [f64; 2],
+        contact: [f64; 2],
+        width: f64,
     ) -> Result<[Vec<[f64; 2]>; 2], DiagnoseError> {
-        let bits = [tip[0].to_bits(), tip[1].to_bits()];
+        let bits = [contact[0].to_bits(), contact[1].to_bits(), width.to_bits()];
         let scaled = |responses: &[Vec<[f64; 2]>; 2]| {
             responses.clone().map(|r| {
                 r.iter()
@@ -268,8 +290,8 @@ impl<const D: usize> Body<D> {
             return Ok(scaled(r));
         }
         let loads = [
-            self.unit_probe_load(locator, tip, 0)?,
-            self.unit_probe_load(locator, tip, 1)?,
+            self.unit_probe_load(locator, contact, width, 0)?,
+            self.unit_probe_load(locator, contact, width, 1)?,
         ];
         let solved = factorized
             .entry
@@ -284,32 +306,50 @@ impl<const D: usize> Body<D> {
         Ok(out)
     }
 
-    /// Load vector of a unit force along `axis` (0: x, 1: y) at the probe
-    /// tip, spread over the thickness in 3-D.
+    /// Load vector of a unit force along `axis` (0: x, 1: y) on the
+    /// probe's contact patch: a rigid flat punch of `width` along the
+    /// boundary through `contact` (through the whole thickness in 3-D),
+    /// whose contact pressure is $p(s) \propto 1/\sqrt{1 - (2s/a)^2}$.
     fn unit_probe_load(
         &self,
         locator: &Locator<'_, D>,
-        tip: [f64; 2],
+        contact: [f64; 2],
+        width: f64,
         axis: usize,
     ) -> Result<Vec<f64>, DiagnoseError> {
         let mut load = vec![0.0; self.mesh.dof_count()];
         let mut unit = [0.0; D];
-        unit[axis] = 1.0;
-        if D == 2 {
-            needle_fem::load::add_point_force(locator, &mut load, lift(tip, 0.0), unit)?;
+        unit[axis] = 1.0 / PATCH_POINTS as f64;
+        // The patch runs along the face the contact lies on.
+        let along = if contact[1] <= 0.0 || contact[1] >= self.extent[1] {
+            [1.0, 0.0]
         } else {
-            let per_length = unit.map(|v| v / self.thickness);
-            let density = move |_: f64| per_length;
-            add_line_load(
-                locator,
-                &mut load,
-                lift(tip, -0.5 * self.thickness),
-                lift(tip, 0.5 * self.thickness),
-                &LineDensity::Function {
-                    density: &density,
-                    breakpoints: Vec::new(),
-                },
-            )?;
+            [0.0, 1.0]
+        };
+        for i in 0..PATCH_POINTS {
+            let angle = (2 * i + 1) as f64 * std::f64::consts::PI / (2 * PATCH_POINTS) as f64;
+            let s = 0.5 * width * angle.cos();
+            // A patch reaching past a corner is cut at the outline.
+            let point = [
+                (contact[0] + s * along[0]).clamp(0.0, self.extent[0]),
+                (contact[1] + s * along[1]).clamp(0.0, self.extent[1]),
+            ];
+            if D == 2 {
+                needle_fem::load::add_point_force(locator, &mut load, lift(point, 0.0), unit)?;
+            } else {
+                let per_length = unit.map(|v| v / self.thickness);
+                let density = move |_: f64| per_length;
+                add_line_load(
+                    locator,
+                    &mut load,
+                    lift(point, -0.5 * self.thickness),
+                    lift(point, 0.5 * self.thickness),
+                    &LineDensity::Function {
+                        density: &density,
+                        breakpoints: Vec::new(),
+                    },
+                )?;
+            }
         }
         Ok(load)
     }

@@ -61,6 +61,10 @@ pub struct Diagnosis {
     pub noise: NoiseSource,
     /// The p-value below which a candidate counts (significance / candidates).
     pub threshold_p: f64,
+    /// Fitted constants outside the range physical for a soft phantom,
+    /// with what that usually means.
+    #[serde(default)]
+    pub warnings: Vec<String>,
 }
 
 /// One fitted parameter with its 95 % Wald interval (absent when it has no
@@ -221,6 +225,7 @@ pub fn diagnose(
         youngs_modulus: options.initial_youngs_modulus,
         poisson_ratio: options.initial_poisson_ratio,
         shaft_density: initial_shaft_density(&context.obs),
+        probe_width: options.initial_probe_width,
     };
     let mut current = Model::new(model, &context.forward.geometry, start)?;
     // A first fit sets the weights: the probe force noise carried to the
@@ -274,6 +279,7 @@ pub fn diagnose(
             candidates: ranked.iter().map(|r| r.candidate.clone()).collect(),
             noise: noise.clone(),
             threshold_p,
+            warnings: physical_range_warnings(&current, &fitted.params),
         };
         ladder.rows.push(LadderRow {
             step: steps.len(),
@@ -318,6 +324,37 @@ pub fn diagnose(
         steps,
         ladder,
     })
+}
+
+/// Below this Poisson's ratio a fitted soft phantom is suspect: PVC,
+/// gelatin, agar and silicone phantoms are nearly incompressible.
+const LEAST_PLAUSIBLE_POISSON_RATIO: f64 = 0.45;
+
+/// Warnings about fitted constants outside their physical range. A
+/// plane-strain model of a thin free slab (plane stress in the limit)
+/// fits it exactly with $\nu' = \nu/(1+\nu)$ and
+/// $E' = E(1+2\nu)/(1+\nu)^2$: for $\nu = 0.48$, $\nu' = 0.32$; the data
+/// then cannot single out `out_of_plane`, but the constants can.
+fn physical_range_warnings(model: &Model, params: &[f64]) -> Vec<String> {
+    let nu = model.baseline(params).poisson_ratio;
+    let mut warnings = Vec::new();
+    if nu < LEAST_PLAUSIBLE_POISSON_RATIO {
+        let plane_stress_nu = (nu / (1.0 - nu)).min(0.5);
+        let mut text = format!(
+            "poisson_ratio fitted at {nu:.3}, below the {LEAST_PLAUSIBLE_POISSON_RATIO} of \
+             nearly incompressible phantom materials (PVC, gelatin, silicone)"
+        );
+        if !model.spec.effects.iter().any(|e| e == "out_of_plane") {
+            text += &format!(
+                ": a plane-strain model reproduces a thin slab's plane-stress response with \
+                 nu' = nu / (1 + nu), which here means nu of about {plane_stress_nu:.2} in the \
+                 slab; \
+                 the slab may be acting out of plane (try the `out_of_plane` effect)"
+            );
+        }
+        warnings.push(text);
+    }
+    warnings
 }
 
 /// The least-squares shaft density from the needle force samples,
@@ -397,9 +434,10 @@ fn marker_residuals(context: &Context, fitted: &Fitted) -> Vec<MarkerResidual> {
             let [x, y] = obs.rest[m];
             let (tip_depth, distance_from_tool) = match frame.load {
                 Load::Free => (0.0, f64::NAN),
-                Load::Probe { tip, .. } => {
-                    (0.0, ((x - tip[0]).powi(2) + (y - tip[1]).powi(2)).sqrt())
-                }
+                Load::Probe { contact, .. } => (
+                    0.0,
+                    ((x - contact[0]).powi(2) + (y - contact[1]).powi(2)).sqrt(),
+                ),
                 Load::Needle(shaft) => {
                     let (dx, dy) = (x - shaft.entry[0], y - shaft.entry[1]);
                     let along = (dx * shaft.direction[0] + dy * shaft.direction[1])
@@ -450,4 +488,47 @@ fn force_residuals(context: &Context, fitted: &Fitted) -> Vec<ForceResidual> {
             }
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::effect::Geometry;
+
+    fn model(effects: &[&str]) -> Model {
+        let spec = ModelSpec {
+            effects: effects.iter().map(|e| e.to_string()).collect(),
+        };
+        let geometry = Geometry {
+            width: 0.075,
+            depth: 0.075,
+            thickness: 0.0075,
+            image_centre: [0.0375, 0.0375],
+            image_radius: 0.05,
+        };
+        let start = Baseline {
+            youngs_modulus: 25e3,
+            poisson_ratio: 0.45,
+            shaft_density: 10.0,
+            probe_width: 0.002,
+        };
+        Model::new(&spec, &geometry, start).unwrap()
+    }
+
+    #[test]
+    fn a_plane_strain_fit_of_a_thin_slab_is_flagged() {
+        let baseline = model(&[]);
+        // The plane-stress mimic of nu = 0.48: nu' = 0.48 / 1.48.
+        let warnings = physical_range_warnings(&baseline, &[22.6e3, 0.48 / 1.48, 10.0, 0.002]);
+        assert_eq!(warnings.len(), 1);
+        assert!(warnings[0].contains("out_of_plane"), "{}", warnings[0]);
+        assert!(warnings[0].contains("about 0.48"), "{}", warnings[0]);
+        assert!(physical_range_warnings(&baseline, &[25.3e3, 0.48, 10.0, 0.002]).is_empty());
+        let slab = model(&["out_of_plane"]);
+        let mut p = vec![25.3e3, 0.3, 10.0, 0.002];
+        p.resize(slab.len(), 1.0);
+        let warnings = physical_range_warnings(&slab, &p);
+        assert_eq!(warnings.len(), 1);
+        assert!(!warnings[0].contains("try the"), "{}", warnings[0]);
+    }
 }

@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::DiagnoseError;
 use crate::forward::Forward;
-use crate::model::Model;
+use crate::model::{Model, PROBE_WIDTH};
 use crate::observe::Observations;
 use crate::whiten::Whitening;
 
@@ -91,7 +91,8 @@ impl Problem for FitProblem<'_> {
 }
 
 /// Fits `model` from `start` (its parameters' `initial` where `start` is
-/// shorter), holding the parameters flagged in `fixed`.
+/// shorter), holding the parameters flagged in `fixed`, and the probe
+/// width when no frame has a probe (nothing would determine it).
 pub(crate) fn fit_model(
     context: &Context,
     model: &Model,
@@ -99,7 +100,12 @@ pub(crate) fn fit_model(
     fixed: &[bool],
 ) -> Result<Fitted, DiagnoseError> {
     let problem = FitProblem { context, model };
-    let parameters = model.lsq_parameters(start, fixed);
+    let mut fixed = fixed.to_vec();
+    fixed.resize(model.len(), false);
+    if !context.obs.has_probe_frames() {
+        fixed[PROBE_WIDTH] = true;
+    }
+    let parameters = model.lsq_parameters(start, &fixed);
     let mut engine = LevenbergMarquardt::default();
     engine.options.function_tolerance = 1e-8;
     engine.options.step_tolerance = 1e-8;

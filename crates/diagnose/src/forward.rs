@@ -14,7 +14,9 @@
 //! $E$ costs triangular solves and no factorisation. All frames of those
 //! trials are solved as one block of right-hand sides.
 //!
-//! - Probe frame: the measured force $F$ at the tip, $u = F_x g_x + F_y g_y$
+//! - Probe frame: the measured force $F$ spread over the contact patch
+//!   as under a rigid flat punch (width $a$, centred on the point of the outline nearest to the tip),
+//!   $u = F_x g_x + F_y g_y$
 //!   with $g$ the responses to unit forces (kept to propagate the force
 //!   noise into the marker covariance, see `whiten`).
 //! - Needle frame: a line load of density $q(s)\,\hat d$ from the entry
@@ -46,8 +48,8 @@ pub(crate) struct Prediction {
 /// One right-hand side of a group of frames.
 #[derive(Debug, Clone, Copy)]
 enum Column {
-    /// Unit force along `axis` at a probe tip.
-    Probe { tip: [f64; 2], axis: usize },
+    /// Unit force along `axis` at a probe's contact point.
+    Probe { contact: [f64; 2], axis: usize },
     /// The needle of frame `frame`.
     Needle { frame: usize },
 }
@@ -243,8 +245,9 @@ impl Forward {
         for (k, column) in columns.iter().enumerate() {
             match *column {
                 // Both axes come together from one tip (x first).
-                Column::Probe { tip, axis: 0 } => {
-                    let responses = body.probe_responses(&locator, &factorized, tip)?;
+                Column::Probe { contact, axis: 0 } => {
+                    let width = model.baseline(p).probe_width;
+                    let responses = body.probe_responses(&locator, &factorized, contact, width)?;
                     for (axis, response) in responses.iter().enumerate() {
                         for (value, u) in out[k + axis].iter_mut().zip(response) {
                             value[0] += weight * u[0];
@@ -341,13 +344,9 @@ impl Forward {
                 first_column.push(columns.len());
                 match obs.frames[f].load {
                     Load::Free => {}
-                    Load::Probe { tip, .. } => {
-                        let tip = [
-                            tip[0].clamp(0.0, self.geometry.width),
-                            tip[1].clamp(0.0, self.geometry.depth),
-                        ];
-                        columns.push(Column::Probe { tip, axis: 0 });
-                        columns.push(Column::Probe { tip, axis: 1 });
+                    Load::Probe { contact, .. } => {
+                        columns.push(Column::Probe { contact, axis: 0 });
+                        columns.push(Column::Probe { contact, axis: 1 });
                     }
                     Load::Needle(_) => columns.push(Column::Needle { frame: f }),
                 }
@@ -519,6 +518,7 @@ mod tests {
             youngs_modulus: 25.0e3,
             poisson_ratio: 0.45,
             shaft_density: 10.0,
+            probe_width: 0.002,
         };
         (obs, forward, start)
     }
@@ -576,7 +576,7 @@ mod tests {
         let (obs, forward, start) = paper_forward();
         let model = with_effect(&forward, start, "tip_cutting_force");
         // q0 = 10 N/m, peak 20 N/m over 5 mm: F = 10 L + 20 * 0.005 / 2.
-        let p = [25.0e3, 0.45, 10.0, 20.0, 0.005];
+        let p = [25.0e3, 0.45, 10.0, 0.002, 20.0, 0.005];
         let values = forward.predict(&model, &p, &obs).unwrap().values;
         let m = obs.marker_count();
         let length = 0.04 / 0.1f64.cos();
@@ -592,7 +592,7 @@ mod tests {
         // Marker values only: the base force does not depend on the kinematics.
         let at = |w: f64| {
             let mut values = forward
-                .predict(&model, &[25.0e3, 0.45, 10.0, w], &obs)
+                .predict(&model, &[25.0e3, 0.45, 10.0, 0.002, w], &obs)
                 .unwrap()
                 .values;
             values.truncate(obs.marker_count());

@@ -20,9 +20,14 @@
 //! The baseline is the paper's: a homogeneous linear elastic plane-strain
 //! T6 model of the top face with a node on every marker, the manifest's
 //! fixed faces held rigidly. A probe trial loads it with the measured tool
-//! force at the tip; a needle trial with a uniform shaft density $q$ along
-//! the inserted needle, whose integral is the predicted base force.
-//! Parameters: $E$, $\nu$, $q$. Every [`effect::Effect`] adds parameters
+//! force spread over a contact patch of width $a$ on the boundary as under
+//! a rigid flat punch,
+//! centred on the point of the outline nearest the tip (a blunt probe is not
+//! a point: at the marker noise its contact shape is seen tens of
+//! millimetres away, and a point force is singular under it); a needle
+//! trial with a uniform shaft density $q$ along the inserted needle, whose
+//! integral is the predicted base force. Parameters: $E$, $\nu$, $q$, $a$
+//! ($a$ is held when no trial probes). Every [`effect::Effect`] adds parameters
 //! and changes one part: the modulus field, the supports, the shaft
 //! density, the kinematics (`out_of_plane` blends in a Tet10 slab through
 //! the thickness), or the measurement map (see [`effect`] and
@@ -81,6 +86,7 @@
 
 mod body;
 mod chi2;
+mod concentrate;
 mod diagnose;
 pub mod effect;
 mod error;
@@ -94,6 +100,7 @@ mod whiten;
 mod write;
 
 pub use chi2::{chi2_upper_quantile, chi2_upper_tail};
+pub use concentrate::{energy_share_of_worst, residual_concentration};
 pub use diagnose::{
     Diagnosis, DiagnosisRun, FittedModel, FittedParameter, ForceResidual, Ladder, LadderRow,
     MarkerResidual, NoiseSource, Verdict, diagnose,

@@ -7,8 +7,10 @@ use crate::effect::{Effect, EffectParameter, Geometry};
 use crate::error::DiagnoseError;
 use crate::spec::ModelSpec;
 
-/// Number of baseline parameters: E, nu, shaft density.
-pub(crate) const BASELINE_PARAMETERS: usize = 3;
+/// Number of baseline parameters: E, nu, shaft density, probe width.
+pub(crate) const BASELINE_PARAMETERS: usize = 4;
+/// Index of the probe contact width in a parameter vector.
+pub(crate) const PROBE_WIDTH: usize = 3;
 
 /// The baseline parameters of a parameter vector.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -16,6 +18,7 @@ pub(crate) struct Baseline {
     pub youngs_modulus: f64,
     pub poisson_ratio: f64,
     pub shaft_density: f64,
+    pub probe_width: f64,
 }
 
 /// The baseline plus effects, with the layout of its parameter vector.
@@ -65,6 +68,17 @@ impl Model {
                 tested: false,
                 meaning: "uniform shaft force density along the inserted needle (N/m)",
             },
+            EffectParameter {
+                name: "probe_width".into(),
+                null: start.probe_width,
+                initial: start.probe_width,
+                scale: 1.0e-3,
+                lower: Some(1.0e-4),
+                upper: Some(0.25 * geometry.width.min(geometry.depth)),
+                tested: false,
+                meaning: "width of the blunt probe's contact patch, pressed as a rigid flat \
+                          punch (m)",
+            },
         ];
         let mut offsets = vec![BASELINE_PARAMETERS];
         for effect in &effects {
@@ -98,6 +112,7 @@ impl Model {
             youngs_modulus: p[0],
             poisson_ratio: p[1],
             shaft_density: p[2],
+            probe_width: p[PROBE_WIDTH],
         }
     }
 

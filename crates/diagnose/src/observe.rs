@@ -19,9 +19,10 @@ use crate::error::DiagnoseError;
 pub(crate) enum Load {
     /// Nothing touches the slab (needle not inserted yet).
     Free,
-    /// A probe pushing at `tip` with `force` (N), whose noise is `force_sigma` per component.
+    /// A probe pushing with `force` (N), whose noise is `force_sigma` per
+    /// component, on the material point `contact` of the boundary.
     Probe {
-        tip: [f64; 2],
+        contact: [f64; 2],
         force: [f64; 2],
         force_sigma: f64,
     },
@@ -119,7 +120,11 @@ impl Observations {
                             let (force, count) =
                                 mean_force_near(&data.tool, frame.t, probe_force_samples);
                             Load::Probe {
-                                tip: [pose.tip_x, pose.tip_y],
+                                contact: nearest_boundary_point(
+                                    [pose.tip_x, pose.tip_y],
+                                    campaign.phantom.width,
+                                    campaign.phantom.depth,
+                                ),
                                 force,
                                 force_sigma: force_sigma / (count as f64).sqrt(),
                             }
@@ -159,6 +164,13 @@ impl Observations {
             return Err(DiagnoseError::NoObservations(campaign.name.clone()));
         }
         Ok(out)
+    }
+
+    /// Whether any frame has a probe on the slab.
+    pub fn has_probe_frames(&self) -> bool {
+        self.frames
+            .iter()
+            .any(|f| matches!(f.load, Load::Probe { .. }))
     }
 
     /// Number of marker residuals (two per marker per frame).
@@ -238,6 +250,20 @@ fn mean_force_near(tool: &[ToolSample], t: f64, count: usize) -> ([f64; 2], usiz
     (force, n)
 }
 
+/// The point of the phantom's outline $[0, w] \times [0, d]$ nearest to
+/// `tip`: where a blunt probe's force acts in the reference configuration.
+/// The tip itself sits inside the outline by the indentation, and a load
+/// applied there would be a load inside the body, not on its boundary.
+fn nearest_boundary_point(tip: [f64; 2], width: f64, depth: f64) -> [f64; 2] {
+    let [x, y] = [tip[0].clamp(0.0, width), tip[1].clamp(0.0, depth)];
+    let candidates = [[0.0, y], [width, y], [x, 0.0], [x, depth]];
+    let distance = |p: &[f64; 2]| (p[0] - x).abs() + (p[1] - y).abs();
+    candidates
+        .into_iter()
+        .min_by(|a, b| distance(a).total_cmp(&distance(b)))
+        .unwrap_or([x, y])
+}
+
 /// The inserted shaft of a needle pose, `None` before it enters.
 fn shaft(pose: &ToolSample) -> Result<Option<Shaft>, String> {
     let direction = [-pose.theta.sin(), pose.theta.cos()];
@@ -263,7 +289,28 @@ fn shaft(pose: &ToolSample) -> Result<Option<Shaft>, String> {
 
 #[cfg(test)]
 mod tests {
-    use super::thinned;
+    use super::{nearest_boundary_point, thinned};
+
+    #[test]
+    fn probe_contact_is_the_nearest_point_of_the_outline() {
+        // Indented 3 mm into the front face, 2 mm into the left face, outside.
+        assert_eq!(
+            nearest_boundary_point([0.03, 0.003], 0.075, 0.06),
+            [0.03, 0.0]
+        );
+        assert_eq!(
+            nearest_boundary_point([0.002, 0.03], 0.075, 0.06),
+            [0.0, 0.03]
+        );
+        assert_eq!(
+            nearest_boundary_point([0.08, 0.059], 0.075, 0.06),
+            [0.075, 0.059]
+        );
+        assert_eq!(
+            nearest_boundary_point([0.03, -0.001], 0.075, 0.06),
+            [0.03, 0.0]
+        );
+    }
 
     #[test]
     fn thinning_spreads_frames_and_keeps_the_last() {

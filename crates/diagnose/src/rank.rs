@@ -30,7 +30,7 @@ use serde::{Deserialize, Serialize};
 use crate::chi2::chi2_upper_tail;
 use crate::error::DiagnoseError;
 use crate::fit::{Context, Fit, Fitted, fit_model};
-use crate::model::Model;
+use crate::model::{Model, PROBE_WIDTH};
 use crate::spec::ModelSpec;
 
 /// One effect not in the model, with the evidence for it.
@@ -171,7 +171,11 @@ pub(crate) fn rank_candidates(
             let start = current.baseline(&fitted.params);
             let augmented = Model::new(&spec, &context.forward.geometry, start)?;
             let (score, score_dof) = score_test(context, current, fitted, &augmented)?;
-            let refit = fit_model(context, &augmented, &fitted.params, &[])?;
+            // The probe's contact width is the apparatus, not physics an
+            // effect could explain: it stays at the current fit's value.
+            let mut hold = vec![false; augmented.len()];
+            hold[PROBE_WIDTH] = true;
+            let refit = fit_model(context, &augmented, &fitted.params, &hold)?;
             let added = augmented.len() - current.len();
             let likelihood_ratio = (fitted.chi2 - refit.chi2).max(0.0);
             let free = refit.report.params.len() as f64;

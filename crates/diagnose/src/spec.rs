@@ -110,6 +110,9 @@ pub struct DiagnoseOptions {
     pub initial_youngs_modulus: f64,
     /// Starting Poisson ratio.
     pub initial_poisson_ratio: f64,
+    /// Starting width of the probe's contact patch (m), fitted when the
+    /// bundle has probing trials.
+    pub initial_probe_width: f64,
 }
 
 impl Default for DiagnoseOptions {
@@ -126,6 +129,7 @@ impl Default for DiagnoseOptions {
             max_added: 4,
             initial_youngs_modulus: 25.0e3,
             initial_poisson_ratio: 0.45,
+            initial_probe_width: 0.002,
         }
     }
 }

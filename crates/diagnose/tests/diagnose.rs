@@ -5,7 +5,7 @@
 mod support;
 
 use needle_diagnose::{DiagnoseOptions, DiagnosisRun, ModelSpec, Verdict, diagnose, write_outputs};
-use support::{Hidden, INCLUSION_CENTRE, make_bundle};
+use support::{Hidden, INCLUSION_CENTRE, PROBE_WIDTH, make_bundle};
 
 fn options(add_recommended: bool, max_added: usize) -> DiagnoseOptions {
     DiagnoseOptions {
@@ -38,6 +38,21 @@ fn null_data_is_consistent_with_noise_for_five_seeds() {
         let d = &run.diagnosis;
         assert_eq!(d.verdict, Verdict::ConsistentWithNoise, "seed {seed}");
         assert!(d.fit.chi2_marker < 1.3 && d.fit.chi2_force < 1.3);
+        // The probe's contact patch is fitted, not assumed a point.
+        let width = run
+            .fitted
+            .parameters
+            .iter()
+            .find(|p| p.name == "probe_width")
+            .unwrap();
+        let error = (width.value - PROBE_WIDTH).abs();
+        let standard_error = width.standard_error.unwrap();
+        println!(
+            "seed {seed}: probe width {:.3} mm, standard error {:.3} mm",
+            width.value * 1e3,
+            standard_error * 1e3
+        );
+        assert!(error < 3.0 * standard_error, "seed {seed}: {width:?}");
     }
 }
 

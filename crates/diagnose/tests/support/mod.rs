@@ -75,6 +75,8 @@ enum Push {
 }
 
 const TIP_WIDTH: f64 = 0.005;
+/// Width of the blunt probe's contact patch (m).
+pub const PROBE_WIDTH: f64 = 0.003;
 /// Elements per marker spacing of the truth mesh (see the module doc).
 const TRUTH_REFINEMENT: usize = 2;
 const YOUNGS: f64 = 25.0e3;
@@ -207,29 +209,41 @@ impl Truth {
             .map(|push| {
                 let mut load = vec![0.0; mesh.dof_count()];
                 match *push {
-                    Push::Probe { x, force } if D == 2 => {
-                        add_point_force(
-                            &locator,
-                            &mut load,
-                            lift([x, 0.0], 0.0),
-                            lift([0.0, force], 0.0),
-                        )
-                        .unwrap();
-                    }
+                    // A blunt probe: a rigid flat punch of PROBE_WIDTH on
+                    // the front face, its pressure 1/sqrt(1 - (2s/a)^2)
+                    // integrated by 16-point Gauss-Chebyshev (through the
+                    // thickness in 3-D).
                     Push::Probe { x, force } => {
-                        let per_length = lift::<D>([0.0, force / THICKNESS], 0.0);
-                        let density = move |_: f64| per_length;
-                        add_line_load(
-                            &locator,
-                            &mut load,
-                            lift([x, 0.0], -half),
-                            lift([x, 0.0], half),
-                            &LineDensity::Function {
-                                density: &density,
-                                breakpoints: vec![],
-                            },
-                        )
-                        .unwrap();
+                        const POINTS: usize = 16;
+                        let share = force / POINTS as f64;
+                        for i in 0..POINTS {
+                            let angle =
+                                (2 * i + 1) as f64 * std::f64::consts::PI / (2 * POINTS) as f64;
+                            let at = x + 0.5 * PROBE_WIDTH * angle.cos();
+                            if D == 2 {
+                                add_point_force(
+                                    &locator,
+                                    &mut load,
+                                    lift([at, 0.0], 0.0),
+                                    lift([0.0, share], 0.0),
+                                )
+                                .unwrap();
+                            } else {
+                                let per_length = lift::<D>([0.0, share / THICKNESS], 0.0);
+                                let density = move |_: f64| per_length;
+                                add_line_load(
+                                    &locator,
+                                    &mut load,
+                                    lift([at, 0.0], -half),
+                                    lift([at, 0.0], half),
+                                    &LineDensity::Function {
+                                        density: &density,
+                                        breakpoints: vec![],
+                                    },
+                                )
+                                .unwrap();
+                            }
+                        }
                     }
                     Push::Needle { x, depth, velocity } => {
                         let density =
@@ -361,7 +375,9 @@ pub fn make_bundle(dir: &Path, name: &str, hidden: Hidden, seed: u64) -> PathBuf
             trial.tool.push(ToolSample {
                 t,
                 tip_x: x,
-                tip_y: 0.0,
+                // The blunt probe sinks in by millimetres (10 mm/N here);
+                // the model must still load the boundary under it.
+                tip_y: 0.01 * force,
                 theta: 0.0,
                 fx: force_noise.sample(&mut rng),
                 fy: force + force_noise.sample(&mut rng),
