@@ -3,7 +3,10 @@
 //! 1. the truth world (`needle-synth`) writes the paper-default campaign as a
 //!    measurement bundle, with its ground truth beside it;
 //! 2. the bundle is read and validated (`needle-data`), and the measured
-//!    deformation of the deepest needle frame is plotted;
+//!    deformation of the deepest needle frame is plotted; the camera is
+//!    calibrated from the bundle's dot-grid images and the trials with
+//!    rendered frames are tracked (`needle-vision`) and compared with their
+//!    `markers.csv`;
 //! 3. E and nu are identified from the probing trials (`needle-identify`,
 //!    the paper's eq. 5) and compared with the truth;
 //! 4. the needle shaft force is inverted (`needle-force`): the paper's plane

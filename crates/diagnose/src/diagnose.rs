@@ -312,7 +312,10 @@ pub fn diagnose(
             &context.forward.geometry,
             current.baseline(&refit.params),
         )?;
-        fitted = refit;
+        // Candidates are refitted with the probe width held; the chosen
+        // model is refitted with it free, since the width the previous
+        // model fitted may have absorbed part of what the effect explains.
+        fitted = fit_model(&context, &current, &refit.params, &[])?;
     }
     let diagnosis = steps.last().cloned().expect("at least one step");
     Ok(DiagnosisRun {
