@@ -85,14 +85,17 @@ pub fn add_sections(report: &mut Report, run: &DiagnosisRun, number: &str) -> Re
         .enumerate()
         .flat_map(|(step, diagnosis)| {
             diagnosis.candidates.iter().map(move |c| {
+                let or_dash = |value: Option<String>| value.unwrap_or_else(|| "-".into());
+                let with = |chi2: f64| or_dash(c.refitted.then(|| format!("{chi2:.2}")));
                 vec![
                     step.to_string(),
                     c.effect.clone(),
                     format!("{:.1}", c.score),
-                    format!("{:.1}", c.likelihood_ratio),
-                    format!("{:.2e}", c.likelihood_ratio_p),
-                    format!("{:.2}", c.fit_with.chi2_marker),
-                    format!("{:.2}", c.fit_with.chi2_force),
+                    format!("{:.2e}", c.score_p),
+                    or_dash(c.likelihood_ratio.map(|v| format!("{v:.1}"))),
+                    or_dash(c.likelihood_ratio_p.map(|v| format!("{v:.2e}"))),
+                    with(c.fit_with.chi2_marker),
+                    with(c.fit_with.chi2_force),
                 ]
             })
         })
@@ -103,7 +106,8 @@ pub fn add_sections(report: &mut Report, run: &DiagnosisRun, number: &str) -> Re
             "step",
             "effect",
             "score",
-            "likelihood ratio",
+            "score p",
+            "likelihood ratio (- : not refitted, score too small)",
             "p",
             "chi2/dof marker with it",
             "chi2/dof force with it",

@@ -22,6 +22,8 @@ use needle_fem::{
 
 use crate::effect::SupportSpec;
 use crate::error::DiagnoseError;
+use crate::observe::Shaft;
+use crate::place::Placement;
 
 /// Factorisations kept per plane body (one per distinct normalised
 /// material field and support).
@@ -71,6 +73,8 @@ pub(crate) struct Body<const D: usize> {
     marker_weights: Vec<Vec<(usize, f64)>>,
     fixed_faces: Vec<Face>,
     rigid: LinearProblem<D>,
+    /// Unfactorised problems with unit springs, per support layout.
+    templates: Mutex<Vec<([bool; 2], LinearProblem<D>)>>,
     cache: Mutex<Vec<(Key, Arc<Entry<D>>)>>,
 }
 
@@ -154,6 +158,7 @@ impl<const D: usize> Body<D> {
             marker_weights,
             fixed_faces,
             rigid,
+            templates: Mutex::new(Vec::new()),
             cache: Mutex::new(Vec::new()),
         })
     }
@@ -224,29 +229,69 @@ impl<const D: usize> Body<D> {
         Ok(Factorized { entry, scale })
     }
 
-    /// The unfactorised problem with elastic supports.
+    /// The unfactorised problem with elastic supports: a clone of the
+    /// template of their layout (compliant fixed faces, foundation), built
+    /// once with unit springs, with the springs scaled, so that a new
+    /// stiffness costs no new ordering or symbolic analysis.
     fn supported(&self, supports: SupportSpec) -> Result<LinearProblem<D>, DiagnoseError> {
+        let compliant = supports.fixed_face_compliance > 0.0;
+        let founded = supports.foundation > 0.0;
+        let mut problem = {
+            let mut templates = self.templates.lock().expect("template lock");
+            match templates
+                .iter()
+                .find(|(layout, _)| *layout == [compliant, founded])
+            {
+                Some((_, template)) => template.clone(),
+                None => {
+                    let template = self.unit_springs(compliant, founded)?;
+                    templates.push(([compliant, founded], template.clone()));
+                    template
+                }
+            }
+        };
+        let mut index = 0;
+        if compliant {
+            for _ in &self.fixed_faces {
+                problem.scale_support(index, 1.0 / supports.fixed_face_compliance)?;
+                index += 1;
+            }
+        }
+        if founded {
+            problem.scale_support(index, supports.foundation)?;
+        }
+        Ok(problem)
+    }
+
+    /// The problem with springs of unit stiffness per unit area on the
+    /// fixed faces (instead of holding them) if `compliant`, and under the
+    /// body if `founded`, in that order.
+    fn unit_springs(
+        &self,
+        compliant: bool,
+        founded: bool,
+    ) -> Result<LinearProblem<D>, DiagnoseError> {
         let mut springs = Vec::new();
-        let dirichlet = if supports.fixed_face_compliance > 0.0 {
-            let k = 1.0 / supports.fixed_face_compliance;
+        let dirichlet = if compliant {
             for &face in &self.fixed_faces {
                 springs.push(Support::Boundary {
                     facets: self.mesh.facets_on_face(face),
-                    stiffness: [k; D],
+                    stiffness: [1.0; D],
                 });
             }
             Dirichlet::new()
         } else {
             fixed_dirichlet(&self.mesh, &self.fixed_faces)
         };
-        if supports.foundation > 0.0 {
-            let stiffness = [supports.foundation; D];
+        if founded {
             springs.push(if D == 2 {
-                Support::Foundation { stiffness }
+                Support::Foundation {
+                    stiffness: [1.0; D],
+                }
             } else {
                 Support::Boundary {
                     facets: self.mesh.facets_on_face(Face::Bottom),
-                    stiffness,
+                    stiffness: [1.0; D],
                 }
             });
         }
@@ -354,29 +399,84 @@ impl<const D: usize> Body<D> {
         Ok(load)
     }
 
-    /// Load vector of a line load along the needle from `entry` to `tip`
-    /// with in-plane density `density(s)` (N/m), in the mid-plane.
+    /// Load vector of the needle's shaft load in the mid-plane: along each
+    /// material piece of `placement`, the density $q(s)\,\hat d$ of the
+    /// spatial arclength $s$ rescaled by the piece's spatial over material
+    /// length (see `place`); `breakpoints` are where $q$ kinks.
     pub fn needle_load(
         &self,
         locator: &Locator<'_, D>,
-        entry: [f64; 2],
-        tip: [f64; 2],
-        density: &(dyn Fn(f64) -> [f64; 2] + Sync),
-        breakpoints: Vec<f64>,
+        shaft: &Shaft,
+        placement: &Placement,
+        density: &(dyn Fn(f64) -> f64 + Sync),
+        breakpoints: &[f64],
     ) -> Result<Vec<f64>, DiagnoseError> {
         let mut load = vec![0.0; self.mesh.dof_count()];
-        let lifted = |s: f64| -> [f64; D] { lift(density(s), 0.0) };
-        add_line_load(
-            locator,
-            &mut load,
-            lift(entry, 0.0),
-            lift(tip, 0.0),
-            &LineDensity::Function {
-                density: &lifted,
-                breakpoints,
-            },
-        )?;
+        let direction = shaft.direction;
+        for piece in placement.pieces(shaft) {
+            let material_length =
+                (piece.end[0] - piece.start[0]).hypot(piece.end[1] - piece.start[1]);
+            let spatial_length = piece.s_end - piece.s_start;
+            if material_length == 0.0 || spatial_length <= 0.0 {
+                continue;
+            }
+            let stretch = spatial_length / material_length;
+            // `m` is the material arclength along the piece.
+            let along = |m: f64| -> [f64; D] {
+                let q = stretch * density(piece.s_start + m * stretch);
+                lift([q * direction[0], q * direction[1]], 0.0)
+            };
+            let kinks = breakpoints
+                .iter()
+                .filter(|&&b| b > piece.s_start && b < piece.s_end)
+                .map(|b| (b - piece.s_start) / stretch)
+                .collect();
+            add_line_load(
+                locator,
+                &mut load,
+                lift(piece.start, 0.0),
+                lift(piece.end, 0.0),
+                &LineDensity::Function {
+                    density: &along,
+                    breakpoints: kinks,
+                },
+            )?;
+        }
         Ok(load)
+    }
+
+    /// In-plane displacement of the mid-plane point `xy` (clamped into the
+    /// outline) in the solution `u`, divided by the factorisation's `scale`.
+    pub fn mid_plane_displacement(
+        &self,
+        locator: &Locator<'_, D>,
+        u: &[f64],
+        scale: f64,
+        xy: [f64; 2],
+    ) -> Result<[f64; 2], DiagnoseError> {
+        let inside = [
+            xy[0].clamp(0.0, self.extent[0]),
+            xy[1].clamp(0.0, self.extent[1]),
+        ];
+        let point = lift::<D>(inside, 0.0);
+        let weights =
+            locator
+                .weights(point)
+                .ok_or_else(|| needle_fem::FemError::PointOutsideMesh {
+                    index: 0,
+                    coordinates: point.to_vec(),
+                })?;
+        let mut v = [0.0; 2];
+        for (n, w) in weights {
+            v[0] += w * u[D * n];
+            v[1] += w * u[D * n + 1];
+        }
+        Ok([v[0] / scale, v[1] / scale])
+    }
+
+    /// Largest x and y of the outline.
+    pub fn extent(&self) -> [f64; 2] {
+        self.extent
     }
 
     /// In-plane displacement of every marker in the solution `u`, divided

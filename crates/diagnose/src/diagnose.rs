@@ -298,9 +298,11 @@ pub fn diagnose(
             }
             _ => None,
         };
+        // The recommended effect was refitted: only refitted candidates
+        // are named.
         let Some(Ranked {
             spec,
-            fitted: refit,
+            fitted: Some(refit),
             ..
         }) = next
         else {
@@ -381,18 +383,16 @@ fn verdict(ranked: &[Ranked], fitted: &Fitted, options: &DiagnoseOptions) -> (Ve
     let excess = fitted.chi2 - fitted.dof.iter().sum::<f64>();
     let leader = ranked
         .iter()
-        .filter(|r| r.candidate.likelihood_ratio_p < threshold_p)
-        .max_by(|a, b| {
-            a.candidate
-                .likelihood_ratio
-                .total_cmp(&b.candidate.likelihood_ratio)
+        .filter_map(|r| {
+            let c = &r.candidate;
+            Some((c, c.likelihood_ratio?, c.likelihood_ratio_p?))
         })
-        .filter(|r| r.candidate.likelihood_ratio >= options.min_explained * excess);
+        .filter(|(_, _, p)| *p < threshold_p)
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .filter(|(_, ratio, _)| *ratio >= options.min_explained * excess)
+        .map(|(c, _, _)| c);
     if let Some(leader) = leader {
-        return (
-            Verdict::MissingEffect(leader.candidate.effect.clone()),
-            threshold_p,
-        );
+        return (Verdict::MissingEffect(leader.effect.clone()), threshold_p);
     }
     let consistent = |chi2: f64, dof: f64| {
         !chi2.is_finite() || chi2 <= 1.0 + options.chi2_spread * (2.0 / dof).sqrt()

@@ -26,7 +26,10 @@
 //! a point: at the marker noise its contact shape is seen tens of
 //! millimetres away, and a point force is singular under it); a needle
 //! trial with a uniform shaft density $q$ along the inserted needle, whose
-//! integral is the predicted base force. Parameters: $E$, $\nu$, $q$, $a$
+//! integral is the predicted base force. The needle's load acts on the
+//! tissue it holds: the material points whose deformed positions lie on the
+//! needle, from the front face as dragged in by the shaft (millimetres in a
+//! soft phantom), found by a few fixed-point rounds per frame. Parameters: $E$, $\nu$, $q$, $a$
 //! ($a$ is held when no trial probes). Every [`effect::Effect`] adds parameters
 //! and changes one part: the modulus field, the supports, the shaft
 //! density, the kinematics (`out_of_plane` blends in a Tet10 slab through
@@ -56,7 +59,11 @@
 //!   (see `rank`).
 //! - **Refit**: the model with the effect added; likelihood ratio
 //!   $\Lambda = \chi^2_\text{now} - \chi^2_\text{with} \sim \chi^2_{k'}$,
-//!   AIC and BIC.
+//!   AIC and BIC. Only candidates whose score p-value is below 0.05, and at
+//!   least the three best, are refitted (`Candidate::refitted`); a refit is
+//!   the costliest work of a step, and the score is the local form of the
+//!   likelihood ratio, so a candidate far from significant by score is
+//!   hardly significant by refit (the leaders are refitted in any case).
 //!
 //! ## The verdict
 //!
@@ -94,6 +101,7 @@ mod fit;
 mod forward;
 mod model;
 mod observe;
+mod place;
 mod rank;
 mod spec;
 mod whiten;

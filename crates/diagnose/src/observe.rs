@@ -6,8 +6,9 @@
 //! frame time. A probe's force is the mean of the `probe_force_samples`
 //! sensor samples nearest in time, so its noise is `force_sigma / sqrt(k)`.
 //! A needle's shaft runs along its axis $\hat d = (-\sin\theta, \cos\theta)$
-//! from the entry point on the front face $y = 0$ to the tip; the inserted
-//! length is $L = y_\text{tip} / \cos\theta$.
+//! from the line's crossing of the front face $y = 0$ to the tip, a length
+//! $L = y_\text{tip} / \cos\theta$ (the forward model shortens it by the
+//! drag of the entry, see `place`).
 
 use needle_data::{Campaign, ToolSample, TrialKind};
 

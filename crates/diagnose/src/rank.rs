@@ -17,7 +17,13 @@
 //! (the support compliance, whose null is the rigid limit, needs a finite
 //! step); $J_\theta$ steps $10^{-6}$ of the scale.
 //!
-//! **Refit.** The model with the effect added is fitted from
+//! The Jacobian in the current parameters is the same for every candidate
+//! (each effect is silent at its null), so it is computed once per step.
+//!
+//! **Refit.** Candidates with a score p-value below 0.05, and at least the
+//! three best by score, are refitted; the others keep their score alone
+//! (`refitted: false`), which saves the costliest work of a step. The
+//! model with the effect added is fitted from
 //! $(\hat\theta, \psi_\text{initial})$; the likelihood ratio
 //! $\Lambda = \chi^2_\text{now} - \chi^2_\text{with}$ is compared with
 //! $\chi^2_{k'}$, $k'$ all the effect's parameters. AIC $= \chi^2 + 2 n_p$
@@ -44,15 +50,19 @@ pub struct Candidate {
     pub score_p: f64,
     /// Number of tested parameters $k$.
     pub score_dof: usize,
+    /// Whether the model with the effect was refitted (see
+    /// [`rank_candidates`]); the fields below are `None` when not.
+    pub refitted: bool,
     /// Likelihood-ratio statistic $\chi^2_\text{now} - \chi^2_\text{with}$.
-    pub likelihood_ratio: f64,
+    pub likelihood_ratio: Option<f64>,
     /// Its p-value with all the effect's parameters as dof.
-    pub likelihood_ratio_p: f64,
+    pub likelihood_ratio_p: Option<f64>,
     /// AIC of the model with the effect.
-    pub aic: f64,
+    pub aic: Option<f64>,
     /// BIC of the model with the effect.
-    pub bic: f64,
-    /// Misfit of the model with the effect.
+    pub bic: Option<f64>,
+    /// Misfit of the model with the effect; without a refit, the current
+    /// fit (the effect at its null value).
     pub fit_with: Fit,
 }
 
@@ -60,56 +70,92 @@ pub struct Candidate {
 pub(crate) struct Ranked {
     pub candidate: Candidate,
     pub spec: ModelSpec,
-    pub fitted: Fitted,
+    pub fitted: Option<Fitted>,
 }
 
-/// Score statistic of `candidate` at the current fit.
+/// Candidates whose score p-value is below this are always refitted (far
+/// above any Bonferroni level, so no candidate that could be named is
+/// skipped for want of a score).
+const REFIT_SCORE_P: f64 = 0.05;
+/// At least this many candidates, the leaders by score p-value, are refitted
+/// at every step (a local score can understate an effect).
+const REFIT_LEADERS: usize = 3;
+
+/// The whitened residuals of the current fit and their Jacobian in the
+/// current model's free parameters: shared by every candidate's score test,
+/// since each effect is silent at its null (`forward` tests this), so the
+/// augmented models predict the same there.
+struct CurrentJacobian {
+    residuals: Vec<f64>,
+    columns: DMatrix<f64>,
+}
+
+impl CurrentJacobian {
+    fn new(context: &Context, current: &Model, fitted: &Fitted) -> Result<Self, DiagnoseError> {
+        let at = &fitted.params;
+        let residuals = context.whitened(current, at)?;
+        let free: Vec<usize> = (0..current.len())
+            .filter(|&k| {
+                fitted.report.uncertainty.status[k] == needle_lsq::ParameterStatus::Estimated
+            })
+            .collect();
+        let derivatives = free
+            .par_iter()
+            .map(|&k| forward_difference(context, current, at, &residuals, k, 1e-6))
+            .collect::<Result<Vec<_>, _>>()?;
+        let columns = DMatrix::from_fn(residuals.len(), free.len(), |i, j| derivatives[j][i]);
+        Ok(Self { residuals, columns })
+    }
+}
+
+/// $\partial r / \partial p_k$ by a forward difference of `relative` times
+/// the parameter's scale (or value), stepping back from an upper bound.
+fn forward_difference(
+    context: &Context,
+    model: &Model,
+    at: &[f64],
+    base: &[f64],
+    k: usize,
+    relative: f64,
+) -> Result<Vec<f64>, DiagnoseError> {
+    let spec = &model.parameters[k];
+    let mut h = relative * spec.scale.max(at[k].abs());
+    if spec.upper.is_some_and(|u| at[k] + h > u) {
+        h = -h;
+    }
+    let mut p = at.to_vec();
+    p[k] += h;
+    let r = context.whitened(model, &p)?;
+    Ok(r.iter().zip(base).map(|(a, b)| (a - b) / h).collect())
+}
+
+/// Score statistic of the effect that extends `current` to `augmented`,
+/// and its number of tested parameters that the data inform.
 fn score_test(
     context: &Context,
-    current: &Model,
+    current: &CurrentJacobian,
     fitted: &Fitted,
     augmented: &Model,
 ) -> Result<(f64, usize), DiagnoseError> {
-    let n_current = current.len();
+    let n_current = fitted.params.len();
     let mut at: Vec<f64> = fitted.params.clone();
     at.extend(
         augmented.parameters[n_current..]
             .iter()
             .map(|p| if p.tested { p.null } else { p.initial }),
     );
-    let base = context.whitened(augmented, &at)?;
-    // Columns: free current parameters (those not on a bound), tested new ones.
-    let current_columns: Vec<usize> = (0..n_current)
-        .filter(|&k| fitted.report.uncertainty.status[k] == needle_lsq::ParameterStatus::Estimated)
-        .collect();
+    let base = &current.residuals;
     let tested: Vec<usize> = (n_current..augmented.len())
         .filter(|&k| augmented.parameters[k].tested)
         .collect();
-    let columns: Vec<(usize, f64)> = current_columns
-        .iter()
-        .map(|&k| (k, 1e-6))
-        .chain(tested.iter().map(|&k| (k, 1e-3)))
-        .collect();
-    let derivatives: Vec<Result<Vec<f64>, DiagnoseError>> = columns
+    let derivatives = tested
         .par_iter()
-        .map(|&(k, relative)| {
-            let spec = &augmented.parameters[k];
-            let mut h = relative * spec.scale.max(at[k].abs());
-            if spec.upper.is_some_and(|u| at[k] + h > u) {
-                h = -h;
-            }
-            let mut p = at.clone();
-            p[k] += h;
-            let r = context.whitened(augmented, &p)?;
-            Ok(r.iter().zip(&base).map(|(a, b)| (a - b) / h).collect())
-        })
-        .collect();
-    let derivatives = derivatives.into_iter().collect::<Result<Vec<_>, _>>()?;
+        .map(|&k| forward_difference(context, augmented, &at, base, k, 1e-3))
+        .collect::<Result<Vec<_>, _>>()?;
     let m = base.len();
-    let nc = current_columns.len();
-    let jt = DMatrix::from_fn(m, nc, |i, j| derivatives[j][i]);
-    let jp = DMatrix::from_fn(m, tested.len(), |i, j| derivatives[nc + j][i]);
-    let projected = if nc > 0 {
+    let jt = &current.columns;
+    let jp = DMatrix::from_fn(m, tested.len(), |i, j| derivatives[j][i]);
+    let projected = if jt.ncols() > 0 {
         let svd = jt.clone().svd(true, true);
         let coefficients = svd
             .solve(&jp, 1e-10 * svd.singular_values.max())
@@ -117,11 +163,11 @@ fn score_test(
                 field: "score test",
                 reason: e.to_string(),
             })?;
-        &jp - &jt * coefficients
+        &jp - jt * coefficients
     } else {
         jp
     };
-    let r = nalgebra::DVector::from_vec(base);
+    let r = nalgebra::DVector::from_column_slice(base);
     let score = projected.transpose() * &r;
     let information = projected.transpose() * &projected;
     let svd = information.svd(true, true);
@@ -151,60 +197,83 @@ fn score_test(
     Ok((statistic, rank))
 }
 
-/// Scores and refits every catalog effect not in `current`, best first
-/// (by likelihood-ratio p-value, then by score).
+/// Scores every catalog effect not in `current`, refits those worth it
+/// (score p-value below [`REFIT_SCORE_P`], and at least the
+/// [`REFIT_LEADERS`] best), and returns them all, best first: refitted ones
+/// by likelihood-ratio p-value, then by score.
 pub(crate) fn rank_candidates(
     context: &Context,
     current: &Model,
     fitted: &Fitted,
 ) -> Result<Vec<Ranked>, DiagnoseError> {
     let n = context.measured.len() as f64;
-    let missing: Vec<_> = crate::effect::catalog()
+    let shared = CurrentJacobian::new(context, current, fitted)?;
+    let scored = crate::effect::catalog()
         .into_iter()
         .filter(|effect| !current.spec.effects.iter().any(|id| id == effect.id()))
-        .collect();
-    // Candidates are independent refits: one per thread.
-    let mut out = missing
-        .par_iter()
-        .map(|effect| -> Result<Ranked, DiagnoseError> {
+        .map(|effect| -> Result<_, DiagnoseError> {
             let spec = current.spec.with(effect.id());
             let start = current.baseline(&fitted.params);
             let augmented = Model::new(&spec, &context.forward.geometry, start)?;
-            let (score, score_dof) = score_test(context, current, fitted, &augmented)?;
+            let (score, score_dof) = score_test(context, &shared, fitted, &augmented)?;
+            Ok((spec, augmented, score, score_dof))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut by_score: Vec<usize> = (0..scored.len()).collect();
+    let score_p = |k: usize| chi2_upper_tail(scored[k].2, scored[k].3);
+    by_score.sort_by(|&a, &b| score_p(a).total_cmp(&score_p(b)));
+    let refit: Vec<bool> = (0..scored.len())
+        .map(|k| score_p(k) < REFIT_SCORE_P || by_score.iter().take(REFIT_LEADERS).any(|&j| j == k))
+        .collect();
+    // Refits are independent: one per thread.
+    let mut out = scored
+        .into_par_iter()
+        .zip(refit)
+        .map(|((spec, augmented, score, score_dof), refit)| {
+            let effect = spec.effects.last().cloned().unwrap_or_default();
+            let mut candidate = Candidate {
+                effect,
+                score,
+                score_p: chi2_upper_tail(score, score_dof),
+                score_dof,
+                refitted: refit,
+                likelihood_ratio: None,
+                likelihood_ratio_p: None,
+                aic: None,
+                bic: None,
+                fit_with: fitted.fit,
+            };
+            if !refit {
+                return Ok(Ranked {
+                    candidate,
+                    spec,
+                    fitted: None,
+                });
+            }
             // The probe's contact width is the apparatus, not physics an
             // effect could explain: it stays at the current fit's value.
             let mut hold = vec![false; augmented.len()];
             hold[PROBE_WIDTH] = true;
-            let refit = fit_model(context, &augmented, &fitted.params, &hold)?;
+            let with = fit_model(context, &augmented, &fitted.params, &hold)?;
             let added = augmented.len() - current.len();
-            let likelihood_ratio = (fitted.chi2 - refit.chi2).max(0.0);
-            let free = refit.report.params.len() as f64;
+            let likelihood_ratio = (fitted.chi2 - with.chi2).max(0.0);
+            let free = with.report.params.len() as f64;
+            candidate.likelihood_ratio = Some(likelihood_ratio);
+            candidate.likelihood_ratio_p = Some(chi2_upper_tail(likelihood_ratio, added));
+            candidate.aic = Some(with.chi2 + 2.0 * free);
+            candidate.bic = Some(with.chi2 + free * n.ln());
+            candidate.fit_with = with.fit;
             Ok(Ranked {
-                candidate: Candidate {
-                    effect: effect.id().to_string(),
-                    score,
-                    score_p: chi2_upper_tail(score, score_dof),
-                    score_dof,
-                    likelihood_ratio,
-                    likelihood_ratio_p: chi2_upper_tail(likelihood_ratio, added),
-                    aic: refit.chi2 + 2.0 * free,
-                    bic: refit.chi2 + free * n.ln(),
-                    fit_with: refit.fit,
-                },
+                candidate,
                 spec,
-                fitted: refit,
+                fitted: Some(with),
             })
         })
-        .collect::<Result<Vec<_>, _>>()?;
+        .collect::<Result<Vec<_>, DiagnoseError>>()?;
     out.sort_by(|a, b| {
-        a.candidate
-            .likelihood_ratio_p
-            .total_cmp(&b.candidate.likelihood_ratio_p)
-            .then(
-                b.candidate
-                    .likelihood_ratio
-                    .total_cmp(&a.candidate.likelihood_ratio),
-            )
+        let p = |r: &Ranked| r.candidate.likelihood_ratio_p.unwrap_or(f64::INFINITY);
+        p(a).total_cmp(&p(b))
+            .then(b.candidate.score.total_cmp(&a.candidate.score))
     });
     Ok(out)
 }

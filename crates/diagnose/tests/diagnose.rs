@@ -21,8 +21,8 @@ fn print(run: &DiagnosisRun) {
         eprintln!("{:?} {:?} {:?}", step.model, step.verdict, step.fit);
         for c in &step.candidates {
             eprintln!(
-                "  {} score {:.2} LR {:.2} p {:.3e}",
-                c.effect, c.score, c.likelihood_ratio, c.likelihood_ratio_p
+                "  {} score {:.2} (p {:.3e}) LR {:?} p {:?}",
+                c.effect, c.score, c.score_p, c.likelihood_ratio, c.likelihood_ratio_p
             );
         }
     }

@@ -9,7 +9,11 @@
 //! - new loads cost two triangular solves ([`LinearProblem::solve`],
 //!   [`LinearProblem::solve_many`]);
 //! - new materials cost one parallel assembly and one numeric factorisation
-//!   ([`LinearProblem::factorize`]), reusing pattern and symbolic analysis.
+//!   ([`LinearProblem::factorize`]), reusing pattern and symbolic analysis;
+//! - so do new spring stiffnesses of the same supports
+//!   ([`LinearProblem::scale_support`]): springs only add values inside the
+//!   elements' pattern, so a fit that varies a support's stiffness never
+//!   redoes the ordering.
 //!
 //! Before factorising, the constraints are checked against the rigid-body
 //! modes (2 translations and 1 rotation in 2-D, 3 and 3 in 3-D): a mode that
@@ -51,8 +55,9 @@ pub struct LinearProblem<const D: usize> {
     reduced_index: Vec<usize>,
     /// Full $K$ (elastic plus springs), no constraints applied.
     stiffness: SparseColMat<usize, f64>,
-    /// Spring matrix of the supports (material independent), if any.
-    springs: Option<SparseColMat<usize, f64>>,
+    /// Per support, its spring matrix as `(position in stiffness values,
+    /// value)` pairs, and the factor it is added with.
+    springs: Vec<(Vec<(usize, f64)>, f64)>,
     /// Lower triangle of $K_{ff}$ and, per entry, its position in `stiffness`.
     reduced: SparseColMat<usize, f64>,
     gather: Vec<usize>,
@@ -78,16 +83,26 @@ impl<const D: usize> LinearProblem<D> {
                 dof_count,
             });
         }
-        let springs = if supports.is_empty() {
-            None
-        } else {
+        let mut total = (!supports.is_empty()).then(|| assembler.pattern().zeros());
+        let mut springs = Vec::with_capacity(supports.len());
+        for support in &supports {
             let mut s = assembler.pattern().zeros();
-            for support in &supports {
-                support.add_to(mesh, assembler.formulation(), assembler.pattern(), &mut s)?;
+            support.add_to(mesh, assembler.formulation(), assembler.pattern(), &mut s)?;
+            if let Some(total) = total.as_mut() {
+                for (t, v) in total.val_mut().iter_mut().zip(s.val()) {
+                    *t += v;
+                }
             }
-            Some(s)
-        };
-        let free_modes = free_rigid_modes(mesh, &dirichlet, springs.as_ref());
+            let entries = s
+                .val()
+                .iter()
+                .enumerate()
+                .filter(|(_, v)| **v != 0.0)
+                .map(|(k, &v)| (k, v))
+                .collect();
+            springs.push((entries, 1.0));
+        }
+        let free_modes = free_rigid_modes(mesh, &dirichlet, total.as_ref());
         if free_modes > 0 {
             return Err(FemError::Unconstrained { free_modes });
         }
@@ -139,9 +154,10 @@ impl<const D: usize> LinearProblem<D> {
         self.factor = None;
         self.assembler
             .stiffness_into(materials, &mut self.stiffness)?;
-        if let Some(springs) = &self.springs {
-            for (k, s) in self.stiffness.val_mut().iter_mut().zip(springs.val()) {
-                *k += s;
+        let values = self.stiffness.val_mut();
+        for (entries, factor) in &self.springs {
+            for &(k, v) in entries {
+                values[k] += factor * v;
             }
         }
         let values = self.stiffness.val();
@@ -171,6 +187,45 @@ impl<const D: usize> LinearProblem<D> {
     /// The supports.
     pub fn supports(&self) -> &[Support<D>] {
         &self.supports
+    }
+
+    /// Multiplies the stiffness of support `index` (in the order given to
+    /// [`LinearProblem::new`]) by `factor` > 0, from the next
+    /// [`LinearProblem::factorize`] on. Pattern and symbolic analysis are
+    /// kept (a clone of a problem shares the latter), and
+    /// [`LinearProblem::supports`] reports the new stiffness.
+    pub fn scale_support(&mut self, index: usize, factor: f64) -> Result<(), FemError> {
+        if !(factor.is_finite() && factor > 0.0) {
+            return Err(FemError::InvalidValue {
+                field: "support stiffness factor",
+                value: factor,
+                reason: "must be finite and positive",
+            });
+        }
+        let count = self.supports.len();
+        let (Some(support), Some(springs)) =
+            (self.supports.get_mut(index), self.springs.get_mut(index))
+        else {
+            return Err(FemError::InvalidValue {
+                field: "support index",
+                value: index as f64,
+                reason: if count == 0 {
+                    "the problem has no supports"
+                } else {
+                    "beyond the problem's supports"
+                },
+            });
+        };
+        match support {
+            Support::Boundary { stiffness, .. } | Support::Foundation { stiffness } => {
+                for k in stiffness.iter_mut() {
+                    *k *= factor;
+                }
+            }
+        }
+        springs.1 *= factor;
+        self.factor = None;
+        Ok(())
     }
 
     /// The Dirichlet conditions.

@@ -427,6 +427,60 @@ fn boundary_springs_match_consistent_tractions() {
     }
 }
 
+/// Scaling a support's stiffness after set-up gives the problem built with
+/// the scaled stiffness (to round-off), and the supports report it.
+#[test]
+fn scaled_supports_match_a_problem_built_with_them() {
+    let mesh = distorted_square(ElementKind::Tri6, 3, 0.2, 5);
+    let back = mesh.facets_on_face(needle_fem::Face::Back);
+    let supports = |k_back: f64, k_area: f64| {
+        vec![
+            needle_fem::Support::Boundary {
+                facets: back.clone(),
+                stiffness: [k_back, 2.0 * k_back],
+            },
+            needle_fem::Support::Foundation {
+                stiffness: [k_area; 2],
+            },
+        ]
+    };
+    let materials = Materials::homogeneous(Material::new(1.0e4, 0.45).unwrap());
+    let loads: Vec<f64> = (0..mesh.dof_count())
+        .map(|d| (0.7 * d as f64).cos() * 1e-3)
+        .collect();
+    let mut scaled = LinearProblem::new(
+        Assembler::new(mesh.clone(), PLANE).unwrap(),
+        supports(1.0e3, 50.0),
+        Dirichlet::new(),
+    )
+    .unwrap();
+    scaled.scale_support(0, 30.0).unwrap();
+    scaled.scale_support(1, 0.2).unwrap();
+    scaled.factorize(&materials).unwrap();
+    let mut fresh = LinearProblem::new(
+        Assembler::new(mesh, PLANE).unwrap(),
+        supports(3.0e4, 10.0),
+        Dirichlet::new(),
+    )
+    .unwrap();
+    fresh.factorize(&materials).unwrap();
+    let a = scaled.solve(&loads).unwrap().displacement;
+    let b = fresh.solve(&loads).unwrap().displacement;
+    let size = b.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    assert!(a.iter().zip(&b).all(|(x, y)| (x - y).abs() < 1e-10 * size));
+    assert_eq!(scaled.supports(), fresh.supports());
+    // The change matters: the unscaled problem answers differently.
+    let mut unscaled = scaled.clone();
+    unscaled.scale_support(0, 1.0 / 30.0).unwrap();
+    unscaled.factorize(&materials).unwrap();
+    let c = unscaled.solve(&loads).unwrap().displacement;
+    assert!(a.iter().zip(&c).any(|(x, y)| (x - y).abs() > 1e-3 * size));
+    for bad in [0.0, -1.0, f64::NAN] {
+        assert!(scaled.scale_support(0, bad).is_err());
+    }
+    assert!(scaled.scale_support(2, 2.0).is_err());
+}
+
 /// Refactorising with new materials reuses the pattern and gives the same
 /// answer as a fresh problem; displacement scales as 1/E.
 #[test]

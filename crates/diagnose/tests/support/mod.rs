@@ -3,6 +3,11 @@
 //! hidden effects written here from their physics, and bundles written with
 //! needle-data's `BundleBuilder` with seeded Gaussian noise.
 //!
+//! Needles load the material points that their spatial line passes
+//! through, from the dragged-in front face to the tip, solved to
+//! convergence (see `Truth::needle_state`), by point loads and Newton's
+//! method rather than the model's line loads and fixed rounds.
+//!
 //! The truth mesh has the refinement the tests give the model (2, to keep
 //! them fast; the slab of `Hidden::slab` the model's default slab
 //! refinement, 1, with two layers), so these tests check the statistics and
@@ -82,6 +87,29 @@ const TRUTH_REFINEMENT: usize = 2;
 const YOUNGS: f64 = 25.0e3;
 const POISSON: f64 = 0.45;
 const SHAFT_DENSITY: f64 = 10.0;
+
+/// The truth's answer to one push.
+struct Response {
+    /// In-plane displacement of every asked point of the top face.
+    markers: Vec<[f64; 2]>,
+    /// How far a needle dragged its entry point into the slab (m).
+    entry: f64,
+}
+
+/// In-plane displacements of `points` on the top face in the solution `u`.
+fn top_face<const D: usize>(
+    locator: &Locator<'_, D>,
+    u: &[f64],
+    points: &[[f64; 2]],
+) -> Vec<[f64; 2]> {
+    points
+        .iter()
+        .map(|p| {
+            let d = locator.interpolate(u, lift(*p, 0.5 * THICKNESS)).unwrap();
+            [d[0], d[1]]
+        })
+        .collect()
+}
 
 struct Truth {
     plane: Mesh<2>,
@@ -185,8 +213,9 @@ impl Truth {
     }
 
     /// In-plane displacement of every point of `points` (on the top face)
-    /// under `pushes`, one solve per push, on day `day`.
-    fn respond(&self, day: f64, pushes: &[Push], points: &[[f64; 2]]) -> Vec<Vec<[f64; 2]>> {
+    /// under `pushes` on day `day`, and how far each push's entry point
+    /// was dragged into the slab (0 for probes).
+    fn respond(&self, day: f64, pushes: &[Push], points: &[[f64; 2]]) -> Vec<Response> {
         if self.hidden.slab {
             self.respond_on(&self.slab, day, pushes, points)
         } else {
@@ -200,7 +229,7 @@ impl Truth {
         day: f64,
         pushes: &[Push],
         points: &[[f64; 2]],
-    ) -> Vec<Vec<[f64; 2]>> {
+    ) -> Vec<Response> {
         let problem = self.problem(mesh, day);
         let locator = Locator::new(mesh);
         let half = 0.5 * THICKNESS;
@@ -246,31 +275,108 @@ impl Truth {
                         }
                     }
                     Push::Needle { x, depth, velocity } => {
-                        let density =
-                            |s: f64| lift::<D>([0.0, self.density(s, depth, velocity)], 0.0);
-                        add_line_load(
-                            &locator,
-                            &mut load,
-                            lift([x, 0.0], 0.0),
-                            lift([x, depth], 0.0),
-                            &LineDensity::Function {
-                                density: &density,
-                                breakpoints: vec![(depth - TIP_WIDTH).max(0.0)],
-                            },
-                        )
-                        .unwrap();
+                        return self.needle_state(&problem, &locator, x, depth, velocity, points);
                     }
                 }
                 let u = problem.solve(&load).unwrap().displacement;
-                points
-                    .iter()
-                    .map(|p| {
-                        let d = locator.interpolate(&u, lift(*p, half)).unwrap();
-                        [d[0], d[1]]
-                    })
-                    .collect()
+                Response {
+                    markers: top_face(&locator, &u, points),
+                    entry: 0.0,
+                }
             })
             .collect()
+    }
+
+    /// A needle along +y at `x` with its tip at `depth`, its load on the
+    /// material points whose deformed positions lie on it, found by
+    /// iterating: place the point loads, solve, move every point to the
+    /// material point of its spatial position (Newton's method on
+    /// $X + u(X) = p$), until no point moves by more than 1e-11 m. The
+    /// shaft starts at the deformed front face, whose material point
+    /// $(x_e, 0)$ satisfies $x_e + u_x = x$.
+    fn needle_state<const D: usize>(
+        &self,
+        problem: &LinearProblem<D>,
+        locator: &Locator<'_, D>,
+        x: f64,
+        depth: f64,
+        velocity: f64,
+        points: &[[f64; 2]],
+    ) -> Response {
+        let dofs = locator.mesh().dof_count();
+        let at = |u: &[f64], p: [f64; 2]| -> [f64; 2] {
+            let inside = [p[0].clamp(0.0, WIDTH), p[1].clamp(0.0, DEPTH)];
+            let d = locator.interpolate(u, lift(inside, 0.0)).unwrap();
+            [d[0], d[1]]
+        };
+        // Two Gauss points on each of `segments` spatial segments.
+        let segments = (depth / 2.5e-4).ceil().max(1.0) as usize;
+        let mut u = vec![0.0; dofs];
+        let mut placed: Vec<[f64; 2]> = Vec::new();
+        for _ in 0..200 {
+            let mut xe = x;
+            for _ in 0..20 {
+                let h = 1e-8;
+                let miss = |xe: f64| xe + at(&u, [xe, 0.0])[0] - x;
+                let step = miss(xe) * 2.0 * h / (miss(xe + h) - miss(xe - h));
+                xe -= step;
+                if step.abs() < 1e-14 {
+                    break;
+                }
+            }
+            let entry = at(&u, [xe, 0.0])[1];
+            let length = depth - entry;
+            let h = length / segments as f64;
+            let g = 0.5 / 3f64.sqrt();
+            let mut loads = Vec::with_capacity(2 * segments);
+            for k in 0..segments {
+                let middle = (k as f64 + 0.5) * h;
+                for s in [middle - g * h, middle + g * h] {
+                    let p = [x, entry + s];
+                    let mut m = p;
+                    for _ in 0..30 {
+                        let d = at(&u, m);
+                        let r = [m[0] + d[0] - p[0], m[1] + d[1] - p[1]];
+                        let e = 1e-8;
+                        let dx = at(&u, [m[0] + e, m[1]]);
+                        let dy = at(&u, [m[0], m[1] + e]);
+                        let jac = [
+                            [1.0 + (dx[0] - d[0]) / e, (dy[0] - d[0]) / e],
+                            [(dx[1] - d[1]) / e, 1.0 + (dy[1] - d[1]) / e],
+                        ];
+                        let det = jac[0][0] * jac[1][1] - jac[0][1] * jac[1][0];
+                        let step = [
+                            (jac[1][1] * r[0] - jac[0][1] * r[1]) / det,
+                            (jac[0][0] * r[1] - jac[1][0] * r[0]) / det,
+                        ];
+                        m = [m[0] - step[0], m[1] - step[1]];
+                        if step[0].abs().max(step[1].abs()) < 1e-14 {
+                            break;
+                        }
+                    }
+                    let m = [m[0].clamp(0.0, WIDTH), m[1].clamp(0.0, DEPTH)];
+                    loads.push((m, 0.5 * h * self.density(s, length, velocity)));
+                }
+            }
+            let moved = placed
+                .iter()
+                .zip(&loads)
+                .map(|(a, (b, _))| (a[0] - b[0]).abs().max((a[1] - b[1]).abs()))
+                .fold(if placed.is_empty() { 1.0 } else { 0.0 }, f64::max);
+            if moved < 1e-11 {
+                return Response {
+                    markers: top_face(locator, &u, points),
+                    entry,
+                };
+            }
+            placed = loads.iter().map(|l| l.0).collect();
+            let mut load = vec![0.0; dofs];
+            for (m, force) in loads {
+                add_point_force(locator, &mut load, lift(m, 0.0), lift([0.0, force], 0.0)).unwrap();
+            }
+            u = problem.solve(&load).unwrap().displacement;
+        }
+        panic!("the truth's needle placement did not converge at depth {depth}");
     }
 
     /// Shaft density at arclength `s` of a needle inserted by `length` at
@@ -388,11 +494,11 @@ pub fn make_bundle(dir: &Path, name: &str, hidden: Hidden, seed: u64) -> PathBuf
             .iter()
             .map(|&force| Push::Probe { x, force })
             .collect();
-        for (frame, d) in truth.respond(day, &pushes, &points).iter().enumerate() {
+        for (frame, response) in truth.respond(day, &pushes, &points).iter().enumerate() {
             let t = 0.5 + frame as f64;
             trial
                 .markers_mut()
-                .push_frame(frame as u64, t, markers_of(d, &mut rng))
+                .push_frame(frame as u64, t, markers_of(&response.markers, &mut rng))
                 .unwrap();
         }
     }
@@ -409,12 +515,25 @@ pub fn make_bundle(dir: &Path, name: &str, hidden: Hidden, seed: u64) -> PathBuf
         });
         let samples = 26;
         let duration = 0.05 / velocity;
+        let time = |i: usize| duration * i as f64 / (samples - 1) as f64;
+        // Every tool sample's state: its base force needs the dragged entry.
+        let pushes: Vec<Push> = (1..samples)
+            .map(|i| Push::Needle {
+                x,
+                depth: velocity * time(i),
+                velocity,
+            })
+            .collect();
+        let responses = truth.respond(day, &pushes, &points);
         for i in 0..samples {
-            let t = duration * i as f64 / (samples - 1) as f64;
-            let depth = velocity * t;
-            let force = truth.needle_force(depth, velocity);
+            let depth = velocity * time(i);
+            let force = if i == 0 {
+                0.0
+            } else {
+                truth.needle_force(depth - responses[i - 1].entry, velocity)
+            };
             trial.tool.push(ToolSample {
-                t,
+                t: time(i),
                 tip_x: x,
                 tip_y: depth,
                 theta: 0.0,
@@ -423,21 +542,14 @@ pub fn make_bundle(dir: &Path, name: &str, hidden: Hidden, seed: u64) -> PathBuf
                 mz: 0.0,
             });
         }
-        let frames = [10usize, 17, 25];
-        let time = |i: usize| duration * i as f64 / (samples - 1) as f64;
-        let pushes: Vec<Push> = frames
-            .iter()
-            .map(|&i| Push::Needle {
-                x,
-                depth: velocity * time(i),
-                velocity,
-            })
-            .collect();
-        let responses = truth.respond(day, &pushes, &points);
-        for (frame, (&i, d)) in frames.iter().zip(&responses).enumerate() {
+        for (frame, &i) in [10usize, 17, 25].iter().enumerate() {
             trial
                 .markers_mut()
-                .push_frame(frame as u64, time(i), markers_of(d, &mut rng))
+                .push_frame(
+                    frame as u64,
+                    time(i),
+                    markers_of(&responses[i - 1].markers, &mut rng),
+                )
                 .unwrap();
         }
     }
