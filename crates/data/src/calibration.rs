@@ -16,6 +16,7 @@ use serde::{Deserialize, Serialize};
 use crate::error::BundleError;
 use crate::layout::{CALIBRATION, CALIBRATION_TARGET};
 use crate::report::{Collector, IssueKind, Severity};
+use crate::ron_lines::field_lines;
 
 /// `calibration/target.ron`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -90,7 +91,8 @@ impl CalibrationTarget {
 }
 
 /// Reads and checks `calibration/target.ron` of the bundle at `root`, if the
-/// bundle has one; every problem goes to `issues`.
+/// bundle has one; every problem goes to `issues`, with the line and field
+/// it is at.
 pub(crate) fn check_calibration_target(
     root: &Path,
     issues: &mut Collector,
@@ -100,12 +102,12 @@ pub(crate) fn check_calibration_target(
     if !path.is_file() {
         return None;
     }
-    let mut error = |field: Option<&str>, message: String| {
+    let mut error = |line: Option<u64>, field: Option<&str>, message: String| {
         issues.add(
             Severity::Error,
             IssueKind::BadCalibration,
             &relative,
-            None,
+            line,
             field,
             message,
         )
@@ -113,25 +115,37 @@ pub(crate) fn check_calibration_target(
     let text = match std::fs::read_to_string(&path) {
         Ok(text) => text,
         Err(e) => {
-            error(None, e.to_string());
+            error(None, None, e.to_string());
             return None;
         }
     };
     let target: CalibrationTarget = match ron::from_str(&text) {
         Ok(target) => target,
         Err(e) => {
-            error(None, e.to_string());
+            error(
+                Some(e.span.start.line as u64),
+                field_named_by(&e.code),
+                format!(
+                    "not a valid calibration target: {} (column {})",
+                    e.code, e.span.start.col
+                ),
+            );
             return None;
         }
     };
+    let lines = field_lines(&text);
     let mut fine = true;
     for (field, reason) in target.problems() {
-        error(Some(field), reason);
+        // "columns/rows" is reported at the line of `columns`.
+        let key = field.split('/').next().unwrap_or(field);
+        error(lines.get(key).copied(), Some(field), reason);
         fine = false;
     }
     for image in &target.images {
         if !root.join(CALIBRATION).join(image).is_file() {
+            let line = line_of_string(&text, image).or_else(|| lines.get("images").copied());
             error(
+                line,
                 Some("images"),
                 format!("{image} is not in the calibration folder"),
             );
@@ -139,6 +153,22 @@ pub(crate) fn check_calibration_target(
         }
     }
     fine.then_some(target)
+}
+
+/// The field a RON error is about, when serde names one.
+fn field_named_by(code: &ron::Error) -> Option<&str> {
+    match code {
+        ron::Error::NoSuchStructField { found, .. } => Some(found),
+        ron::Error::MissingStructField { field, .. }
+        | ron::Error::DuplicateStructField { field, .. } => Some(field),
+        _ => None,
+    }
+}
+
+/// The one-based line of the first string literal `"value"` in `text`.
+fn line_of_string(text: &str, value: &str) -> Option<u64> {
+    let at = text.find(&format!("\"{value}\""))?;
+    Some(1 + text[..at].matches('\n').count() as u64)
 }
 
 /// Reads `calibration/target.ron` of the bundle at `root`: `None` when the

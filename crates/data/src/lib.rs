@@ -97,6 +97,7 @@ mod parse_table;
 mod read;
 mod read_tables;
 mod report;
+mod ron_lines;
 mod types;
 mod write;
 

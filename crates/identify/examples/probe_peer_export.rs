@@ -24,9 +24,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     std::fs::create_dir_all(&dir)?;
     let scenario = support::Scenario::paper();
     let data = scenario.probe_data(4e-6, 1);
+    // The peer models the probe as a point force, as the truth does.
     let options = IdentifyOptions {
         per_trial: false,
-        ..IdentifyOptions::default()
+        ..support::point_force()
     };
 
     let mut ours = String::from("start_E,start_nu,E,nu,cost,evaluations,jacobians,seconds\n");

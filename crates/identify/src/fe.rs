@@ -1,7 +1,7 @@
 //! The finite-element side of the probing model in `D` dimensions (the
 //! plane mesh, `D = 2`, or the slab, `D = 3`): the constrained stiffness
-//! system with its kept factorisation, the unit loads, and the marker
-//! interpolation $H$, which reads the in-plane components $(u_x, u_y)$ of
+//! system with its kept factorisation, the solution for unit loads (built
+//! by the caller, `crate::model`), and the marker interpolation $H$, which reads the in-plane components $(u_x, u_y)$ of
 //! the field at each marker.
 //!
 //! The fixed faces are eliminated and the stiffness pattern and its
@@ -25,7 +25,8 @@ use crate::error::IdentifyError;
 /// The model's response at one set of materials: the unit-load solutions.
 pub struct Response {
     /// `unit[2 l + c]`: nodal displacements (all `D` components) under a
-    /// unit force along axis `c` at load point `l`.
+    /// unit force along axis `c` at load point `l` (spread over the
+    /// punch's patch, or at the point).
     unit: Vec<Vec<f64>>,
     /// `markers[2 l + c]`: marker displacements (interleaved x, y per
     /// marker) of the same unit load, $G_{l,c}$.
@@ -37,10 +38,10 @@ pub struct Response {
 pub(crate) struct FeSystem<const D: usize> {
     /// The system and the materials it was last factorised at.
     system: Mutex<(LinearProblem<D>, Option<Materials>)>,
+    /// The mesh, to place loads on (the system keeps its own).
+    mesh: Mesh<D>,
     /// Shape-function weights of every marker.
     markers: Vec<NodeWeights>,
-    /// Unit loads as full dof vectors, `loads[2 l + c]`.
-    loads: Vec<Vec<f64>>,
     region_count: usize,
 }
 
@@ -52,43 +53,76 @@ impl<const D: usize> FeSystem<D> {
         formulation: Formulation,
         fixed: &[Face],
         markers: Vec<NodeWeights>,
-        loads: Vec<Vec<f64>>,
     ) -> Result<Self, IdentifyError> {
         let mut dirichlet = Dirichlet::new();
         for &face in fixed {
             dirichlet.fix_nodes(&mesh, &mesh.nodes_on_face(face))?;
         }
         let region_count = mesh.region_count();
-        let system = LinearProblem::new(Assembler::new(mesh, formulation)?, Vec::new(), dirichlet)?;
+        let system = LinearProblem::new(
+            Assembler::new(mesh.clone(), formulation)?,
+            Vec::new(),
+            dirichlet,
+        )?;
         Ok(Self {
             system: Mutex::new((system, None)),
+            mesh,
             markers,
-            loads,
             region_count,
         })
     }
 
-    /// Nodes and elements of the mesh.
-    pub fn size(&self) -> Result<(usize, usize), IdentifyError> {
-        let guard = self.system.lock().map_err(|_| poisoned())?;
-        let mesh = guard.0.mesh();
-        Ok((mesh.node_count(), mesh.element_count()))
+    /// The mesh.
+    pub fn mesh(&self) -> &Mesh<D> {
+        &self.mesh
     }
 
-    /// Solves for every unit load at `materials` (one numeric Cholesky
-    /// factorisation, `2 x load points` right-hand sides).
-    pub fn respond(&self, materials: &Materials) -> Result<Response, IdentifyError> {
+    /// Nodes and elements of the mesh.
+    pub fn size(&self) -> (usize, usize) {
+        (self.mesh.node_count(), self.mesh.element_count())
+    }
+
+    /// Solves for every unit load (full dof vectors, `loads[2 l + c]`) at
+    /// `materials` (one numeric Cholesky factorisation, one
+    /// back-substitution per load).
+    pub fn respond(
+        &self,
+        materials: &Materials,
+        loads: &[Vec<f64>],
+    ) -> Result<Response, IdentifyError> {
+        let unit = self.solve(materials, loads)?;
+        let markers = unit.iter().map(|u| self.at_markers(u)).collect();
+        Ok(Response { unit, markers })
+    }
+
+    /// The marker displacements of `loads` at `materials`.
+    pub fn marker_response(
+        &self,
+        materials: &Materials,
+        loads: &[Vec<f64>],
+    ) -> Result<Vec<Vec<f64>>, IdentifyError> {
+        Ok(self
+            .solve(materials, loads)?
+            .iter()
+            .map(|u| self.at_markers(u))
+            .collect())
+    }
+
+    /// The nodal displacements of `loads` at `materials`.
+    fn solve(
+        &self,
+        materials: &Materials,
+        loads: &[Vec<f64>],
+    ) -> Result<Vec<Vec<f64>>, IdentifyError> {
         let mut guard = self.system.lock().map_err(|_| poisoned())?;
         let (system, factored_at) = &mut *guard;
         factorize(system, factored_at, materials)?;
-        let loads: Vec<&[f64]> = self.loads.iter().map(Vec::as_slice).collect();
-        let unit: Vec<Vec<f64>> = system
+        let loads: Vec<&[f64]> = loads.iter().map(Vec::as_slice).collect();
+        Ok(system
             .solve_many(&loads)?
             .into_iter()
             .map(|s| s.displacement)
-            .collect();
-        let markers = unit.iter().map(|u| self.at_markers(u)).collect();
-        Ok(Response { unit, markers })
+            .collect())
     }
 
     /// Marker-level sensitivities $H\,\partial U/\partial p$ of every unit

@@ -1,6 +1,7 @@
 //! The identification pipeline: scan Poisson's ratio with the modulus
-//! projected out in closed form, polish $(E, \nu)$ with Levenberg-Marquardt,
-//! then the per-region moduli, the per-trial moduli and their drift.
+//! projected out in closed form, polish $(E, \nu)$ and the probe's contact
+//! width with Levenberg-Marquardt, then the per-region moduli, the
+//! per-trial moduli and their drift.
 
 use needle_data::LoadedBundle;
 use needle_fem::material::Materials;
@@ -10,7 +11,7 @@ use crate::error::IdentifyError;
 use crate::extract::extract_probe_data;
 use crate::model::{ModelSpec, ProbeModel};
 use crate::observe::{Observations, load_points};
-use crate::options::IdentifyOptions;
+use crate::options::{IdentifyOptions, ProbeLoad};
 use crate::probe::ProbeData;
 use crate::problem::{LineProblem, ProbeProblem, ScaleProblem};
 use crate::result::{
@@ -23,6 +24,9 @@ const POOR_FIT_REDUCED_CHI2: f64 = 2.0;
 const DRIFT_Z: f64 = 3.0;
 /// ...and changes the modulus by more than this fraction over the days spanned.
 const DRIFT_FRACTION: f64 = 0.005;
+/// Largest contact width searched, as a fraction of the smaller side of
+/// the phantom.
+const MAX_WIDTH_FRACTION: f64 = 0.5;
 
 /// Identifies the material from the bundle's `Probe` trials (equation (5)).
 /// Trials that cannot contribute are skipped and flagged; see
@@ -55,10 +59,12 @@ pub(crate) struct ScanPoint {
 ///
 /// 1. Scan $\nu$ over `options.poisson_bounds` (points uniform in
 ///    $\ln(1/2 - \nu)$, which crowds them where the response changes fast,
-///    plus the start), projecting the modulus out in closed form at each.
-/// 2. Polish $(E, \nu)$ from the best scan point with the `needle-lsq`
-///    Levenberg-Marquardt engine (analytic Jacobian), which also gives the
-///    covariance.
+///    plus the start), projecting the modulus out in closed form at each,
+///    with the contact width at its start.
+/// 2. Polish $(E, \nu)$ and the contact width (when fitted) from the best
+///    scan point with the `needle-lsq` Levenberg-Marquardt engine
+///    (analytic Jacobian in the material, a difference of the load in the
+///    width), which also gives the covariance.
 /// 3. With regions: fit $(E_0, \dots, E_{R-1}, \nu)$ from the homogeneous
 ///    optimum.
 /// 4. With `per_trial`: each trial's modulus with $\nu$ held, and a line
@@ -89,11 +95,18 @@ pub fn identify_from_data(
     };
     let model = ProbeModel::new(&data.setup, &points, &spec)?;
     let mut observations = Observations::new(data, &model, &frame_loads, options)?;
-    let parameter_count = if model.region_count() > 1 {
-        model.region_count() + 1
-    } else {
-        2
+    let (start_width, fit_width) = match options.probe {
+        ProbeLoad::Point => (0.0, false),
+        ProbeLoad::FlatPunch { width, fit_width } => {
+            (width.unwrap_or(model.marker_spacing()), fit_width)
+        }
     };
+    let parameter_count = usize::from(fit_width)
+        + if model.region_count() > 1 {
+            model.region_count() + 1
+        } else {
+            2
+        };
     if observations.rows.len() <= parameter_count {
         return Err(IdentifyError::TooFewMarkers {
             context: format!(
@@ -108,7 +121,7 @@ pub fn identify_from_data(
 
     // 1. The scan with the modulus projected out.
     let reference = options.start_youngs_modulus;
-    let scan = scan_poisson(&model, &observations, options)?;
+    let scan = scan_poisson(&model, &observations, options, start_width)?;
     let best = scan
         .iter()
         .copied()
@@ -122,7 +135,7 @@ pub fn identify_from_data(
                 .fold(f64::NEG_INFINITY, f64::max),
         })?;
     let scaling = if let NoiseSource::Estimated(_) = observations.noise {
-        let dof = observations.rows.len() - 2;
+        let dof = observations.rows.len() - parameter_count;
         let sigma = (2.0 * best.cost / dof as f64).sqrt();
         if sigma.is_nan() || sigma <= 0.0 {
             return Err(IdentifyError::InvalidValue {
@@ -153,19 +166,32 @@ pub fn identify_from_data(
             .with_bounds(nu_lo, nu_hi)
             .with_scale(0.01)
     };
+    let max_width = MAX_WIDTH_FRACTION * data.setup.width.min(data.setup.depth);
+    let contact_width = |value: f64| {
+        let parameter = Parameter::new("probe width", value.clamp(0.0, max_width))
+            .with_bounds(0.0, max_width)
+            .with_scale(model.marker_spacing());
+        if fit_width {
+            parameter
+        } else {
+            parameter.fix()
+        }
+    };
 
-    // 2. The polish of (E, nu).
-    let problem = ProbeProblem::new(&model, &observations, true);
+    // 2. The polish of (E, nu) and the contact width.
+    let problem = ProbeProblem::new(&model, &observations, true, fit_width);
     let report = engine.minimize(
         &problem,
         &[
             modulus("E".into(), reference / best.scale),
             poisson(best.poisson_ratio),
+            contact_width(start_width),
         ],
     )?;
     flag_report(&report, "homogeneous fit", &mut flags);
     let youngs_modulus = Estimate::from_report(&report, 0);
     let poisson_ratio = Estimate::from_report(&report, 1);
+    let width = Estimate::from_report(&report, 2);
     let reduced_chi2 = report.reduced_chi2().unwrap_or(f64::NAN);
     if scaling == CovarianceScaling::KnownNoise && reduced_chi2 > POOR_FIT_REDUCED_CHI2 {
         flags.push(FitFlag::PoorFit { reduced_chi2 });
@@ -173,11 +199,12 @@ pub fn identify_from_data(
 
     // 3. Per-region moduli.
     let regions = if model.region_count() > 1 {
-        let problem = ProbeProblem::new(&model, &observations, false);
+        let problem = ProbeProblem::new(&model, &observations, false, fit_width);
         let mut parameters: Vec<Parameter> = (0..model.region_count())
             .map(|r| modulus(format!("E[{r}]"), youngs_modulus.value))
             .collect();
         parameters.push(poisson(poisson_ratio.value));
+        parameters.push(contact_width(width.value));
         let regional = engine.minimize(&problem, &parameters)?;
         flag_report(&regional, "region fit", &mut flags);
         Some(RegionFit {
@@ -199,7 +226,7 @@ pub fn identify_from_data(
                 (youngs_modulus.value, poisson_ratio.value);
                 model.region_count()
             ])?;
-        let pattern = model.respond(&materials)?;
+        let pattern = model.respond(&materials, width.value)?;
         let trials = fit_trials(
             data,
             &observations,
@@ -215,10 +242,11 @@ pub fn identify_from_data(
         (Vec::new(), None)
     };
 
-    let (nodes, elements) = model.mesh_size()?;
+    let (nodes, elements) = model.mesh_size();
     Ok(MaterialFit {
         youngs_modulus,
         poisson_ratio,
+        probe_width: matches!(options.probe, ProbeLoad::FlatPunch { .. }).then_some(width),
         regions,
         chi2: report.chi2,
         dof: report.dof,
@@ -250,6 +278,7 @@ pub(crate) fn scan_poisson(
     model: &ProbeModel,
     observations: &Observations,
     options: &IdentifyOptions,
+    width: f64,
 ) -> Result<Vec<ScanPoint>, IdentifyError> {
     let (lo, hi) = options.poisson_bounds;
     let n = options.scan_points;
@@ -266,7 +295,7 @@ pub(crate) fn scan_poisson(
         .map(|nu| {
             let materials =
                 Materials::from_parameters(&vec![(reference, nu); model.region_count()])?;
-            let response = model.respond(&materials)?;
+            let response = model.respond(&materials, width)?;
             let (mut gd, mut gg, mut dd) = (0.0, 0.0, 0.0);
             for row in &observations.rows {
                 let w2 = row.weight * row.weight;

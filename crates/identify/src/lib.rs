@@ -11,8 +11,11 @@
 //! $$\min_{E,\nu}\; \big(u - P K(E,\nu)^{-1} f\big)^T W \big(u - P K(E,\nu)^{-1} f\big) \qquad (5)$$
 //!
 //! where $u$ stacks the measured marker displacements of every frame in
-//! contact, $f$ the probe force of that frame applied at the probe tip's
-//! point of the boundary, $K$ the plane-strain (or plane-stress) stiffness
+//! contact, $f$ the probe force of that frame, spread over the contact
+//! patch of a rigid flat punch of fitted width $a$ centred on the probe
+//! tip's point of the boundary (pressure $\propto 1/\sqrt{1 - (2s/a)^2}$
+//! along the face, [`ProbeLoad::FlatPunch`], the default) or applied at
+//! that point ([`ProbeLoad::Point`], the paper's), $K$ the plane-strain (or plane-stress) stiffness
 //! of equation (4) with the fixed faces imposed, or that of the 3-D slab of
 //! tetrahedra ([`PlaneModel::Slab`]: markers on the top face, the probe
 //! force spread over the thickness), $P$ the interpolation of
@@ -29,9 +32,11 @@
 //! What is left is a one-dimensional profile in $\nu$, which is scanned over
 //! the whole interval $[0, 0.499]$ (points crowded towards $1/2$, where the
 //! response changes fastest). The best scan point starts a
-//! Levenberg-Marquardt polish of $(E,\nu)$ by the project's engine
+//! Levenberg-Marquardt polish of $(E,\nu)$ and the punch width by the
+//! project's engine
 //! ([`lsq`], re-exported here) with the analytic Jacobian
-//! $\partial u/\partial p = -K^{-1}(\partial K/\partial p)\,u$, which also
+//! $\partial u/\partial p = -K^{-1}(\partial K/\partial p)\,u$ (for the
+//! width, $K^{-1}\partial b/\partial a$ by a difference of the load), which also
 //! yields the covariance, the standard errors and 95% intervals. The
 //! starting values therefore do not decide which minimum is found: any start
 //! with $E$ in 1 kPa..1 MPa and $\nu$ in 0..0.499 gives the same fit (tested).
@@ -60,14 +65,17 @@
 //!
 //! # What it does not do
 //!
-//! It does not track markers (needle-vision), model the contact patch,
-//! friction, viscoelasticity or large strains (the needle-diagnose
-//! effects), or treat the force as uncertain: the probe force is taken as
-//! exact and only marker noise whitens the residuals (a straight line
-//! fitted to the force record around each frame, `force_window`, averages
-//! the sensor's noise and quantisation out). Markers closer than
-//! one marker spacing to the load point are left out, because a point load's
-//! displacement is singular there and depends on the unmodelled contact.
+//! It does not track markers (needle-vision), model friction under the
+//! probe, a pressure that varies through the thickness, viscoelasticity or
+//! large strains (the needle-diagnose effects), or treat the force as
+//! uncertain: the probe force is taken as exact and only marker noise
+//! whitens the residuals (a straight line fitted to the force record around
+//! each frame, `force_window`, averages the sensor's noise and quantisation
+//! out; what is left still dominates chi2/dof on the default sensor,
+//! `docs/identification.md`). With the point-force model, markers closer
+//! than one marker spacing to the load point are left out by default,
+//! because a point load's displacement is singular there; the flat punch
+//! models the contact patch and keeps them.
 //!
 //! # Bad input
 //!
@@ -88,6 +96,7 @@ mod observe;
 mod options;
 mod probe;
 mod problem;
+mod punch;
 mod result;
 
 pub use needle_lsq as lsq;
@@ -97,7 +106,7 @@ pub use extract::{extract_probe_data, fitted_sample_at, sample_at};
 pub use fe::Response;
 pub use identify::{identify_from_data, identify_material};
 pub use model::{ModelSpec, ProbeModel, project_to_boundary};
-pub use options::{IdentifyOptions, PlaneModel, Regions};
+pub use options::{IdentifyOptions, PlaneModel, ProbeLoad, Regions};
 pub use probe::{MIN_MARKERS, MarkerDisplacement, ProbeData, ProbeFrame, ProbeSetup, ProbeTrial};
 pub use result::{
     CONFIDENCE_LEVEL, DriftFit, Estimate, FitFlag, MaterialFit, ModelSummary, NoiseSource,

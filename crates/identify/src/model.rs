@@ -2,22 +2,29 @@
 //! phantom on the marker grid (the top face as a 2-D plane-strain or
 //! plane-stress mesh, or the 3-D slab of tetrahedra with element layers
 //! through the thickness), the fixed faces, the probe load points on the
-//! boundary, and the map from material parameters to marker displacements
-//! per unit probe force,
+//! boundary, and the map from material parameters and the probe's contact
+//! width $a$ to marker displacements per unit probe force,
 //!
-//! $$G_{l,c}(\theta) = H\,K(\theta)^{-1} b_{l,c},$$
+//! $$G_{l,c}(\theta, a) = H\,K(\theta)^{-1} b_{l,c}(a),$$
 //!
-//! where $b_{l,c}$ is a unit force in direction $c$ at load point $l$ and
-//! $H$ interpolates the in-plane nodal displacements at the markers (on the
-//! top face $z = t/2$ of the slab). In the plane models $b_{l,c}$ is a point
-//! force distributed by the shape functions at that point (`needle-fem`'s
+//! where $b_{l,c}(a)$ is a unit force in direction $c$ spread over the
+//! patch of a rigid flat punch of width $a$ centred on load point $l$
+//! (`crate::punch`: $p(s) \propto 1/\sqrt{1 - (2s/a)^2}$ along the face;
+//! $a = 0$ is the paper's point force) and $H$ interpolates the in-plane
+//! nodal displacements at the markers (on the top face $z = t/2$ of the
+//! slab). In the plane models each sample of the patch is a point force
+//! distributed by the shape functions at that point (`needle-fem`'s
 //! consistent point force); in the slab the probe presses the whole
-//! thickness of the front face, so $b_{l,c}$ is a uniform line load of
-//! density $1/t$ along z through the load point, from $z = -t/2$ to $t/2$.
-//! The sensitivities follow from differentiating $K U = B$:
-//! $\partial U/\partial p = -K^{-1}\,(\partial K/\partial p)\,U$.
+//! thickness of the face, so each sample is a uniform line load along z
+//! from $z = -t/2$ to $t/2$. The sensitivities follow from differentiating
+//! $K U = B$: $\partial U/\partial p = -K^{-1}\,(\partial K/\partial p)\,U$
+//! for the material, $\partial U/\partial a = K^{-1}\,\partial B/\partial a$
+//! for the width (a central difference of the load, which is smooth in
+//! $a$, with the same factor).
 
 use needle_fem::element::ElementKind;
+use std::sync::Mutex;
+
 use needle_fem::load::{LineDensity, add_line_load, add_point_force};
 use needle_fem::locate::Locator;
 use needle_fem::material::{Formulation, Materials};
@@ -27,11 +34,18 @@ use crate::error::IdentifyError;
 use crate::fe::{FeSystem, Response};
 use crate::options::{PlaneModel, Regions};
 use crate::probe::ProbeSetup;
+use crate::punch::patch_rule;
 
 /// How deep inside (or far outside) the phantom a probe tip may be, as a
 /// fraction of the smaller side, and still count as pressing on the
 /// boundary.
 const MAX_TIP_OFFSET_FRACTION: f64 = 0.2;
+
+/// Step of the central difference in the contact width, as a fraction of
+/// the marker spacing: the load is smooth in the width between the widths
+/// at which the patch edges reach a mesh line, so the difference is
+/// accurate to the square of the step.
+const WIDTH_STEP_FRACTION: f64 = 1e-3;
 
 /// The model choices that shape the mesh.
 #[derive(Debug, Clone, PartialEq)]
@@ -69,6 +83,13 @@ pub struct ProbeModel {
     load_points: Vec<[f64; 2]>,
     region_count: usize,
     marker_spacing: f64,
+    /// Mesh lines in x and in y: where the shape functions kink along a
+    /// face.
+    lines: [Vec<f64>; 2],
+    /// Width, depth and thickness of the phantom.
+    extent: [f64; 3],
+    /// The unit loads at the last contact width asked for.
+    loads: Mutex<Option<(f64, Vec<Vec<f64>>)>>,
 }
 
 /// The plane or the slab system.
@@ -79,8 +100,8 @@ enum System {
 }
 
 impl ProbeModel {
-    /// Builds the mesh on the markers of `setup`, the fixed dofs, the
-    /// interpolation at the markers and the loads at `load_points` (each
+    /// Builds the mesh on the markers of `setup`, the fixed dofs and the
+    /// interpolation at the markers, for loads at `load_points` (each
     /// already on the boundary, see [`project_to_boundary`]).
     pub fn new(
         setup: &ProbeSetup,
@@ -104,7 +125,7 @@ impl ProbeModel {
                     }
                 };
                 let mesh = with_regions(plan.build(element)?, &spec.regions)?;
-                System::Plane(plane_system(setup, load_points, mesh, formulation)?)
+                System::Plane(plane_system(setup, mesh, formulation)?)
             }
             PlaneModel::Slab => {
                 if spec.layers == 0 {
@@ -114,18 +135,24 @@ impl ProbeModel {
                         reason: "must be at least 1",
                     });
                 }
-                let slab = SlabMesh::new(plan, setup.thickness, spec.layers)?;
+                let slab = SlabMesh::new(plan.clone(), setup.thickness, spec.layers)?;
                 let mesh = with_regions(slab.build(element)?, &spec.regions)?;
-                System::Slab(slab_system(setup, load_points, mesh)?)
+                System::Slab(slab_system(setup, mesh)?)
             }
         };
-        Ok(Self {
+        let model = Self {
             system,
             element,
             load_points: load_points.to_vec(),
             region_count: spec.regions.count(),
             marker_spacing,
-        })
+            lines: [plan.x_lines, plan.y_lines],
+            extent: [setup.width, setup.depth, setup.thickness],
+            loads: Mutex::new(None),
+        };
+        // Every load point must carry its force into the mesh.
+        model.unit_loads(0.0)?;
+        Ok(model)
     }
 
     /// The element of the mesh.
@@ -134,7 +161,7 @@ impl ProbeModel {
     }
 
     /// Nodes and elements of the mesh.
-    pub fn mesh_size(&self) -> Result<(usize, usize), IdentifyError> {
+    pub fn mesh_size(&self) -> (usize, usize) {
         match &self.system {
             System::Plane(s) => s.size(),
             System::Slab(s) => s.size(),
@@ -156,13 +183,88 @@ impl ProbeModel {
         self.marker_spacing
     }
 
-    /// Solves for every unit load at `materials` (one numeric Cholesky
-    /// factorisation, `2 x load points` right-hand sides).
-    pub fn respond(&self, materials: &Materials) -> Result<Response, IdentifyError> {
+    /// Solves for every unit load at `materials`, spread over a flat
+    /// punch's patch of `width` (m; 0: the point force): one numeric
+    /// Cholesky factorisation, `2 x load points` right-hand sides.
+    pub fn respond(&self, materials: &Materials, width: f64) -> Result<Response, IdentifyError> {
+        let loads = self.cached_loads(width)?;
         match &self.system {
-            System::Plane(s) => s.respond(materials),
-            System::Slab(s) => s.respond(materials),
+            System::Plane(s) => s.respond(materials, &loads),
+            System::Slab(s) => s.respond(materials, &loads),
         }
+    }
+
+    /// Marker-level sensitivities $H\,\partial U/\partial a$ of every unit
+    /// response to the contact width, by a central difference of the
+    /// loads (the rule is even in the width, so this holds at 0 too).
+    pub fn width_sensitivity(
+        &self,
+        materials: &Materials,
+        width: f64,
+    ) -> Result<Vec<Vec<f64>>, IdentifyError> {
+        let h = WIDTH_STEP_FRACTION * self.marker_spacing;
+        let (plus, minus) = (self.unit_loads(width + h)?, self.unit_loads(width - h)?);
+        let difference: Vec<Vec<f64>> = plus
+            .iter()
+            .zip(&minus)
+            .map(|(p, m)| p.iter().zip(m).map(|(p, m)| (p - m) / (2.0 * h)).collect())
+            .collect();
+        match &self.system {
+            System::Plane(s) => s.marker_response(materials, &difference),
+            System::Slab(s) => s.marker_response(materials, &difference),
+        }
+    }
+
+    /// The unit loads at `width`, kept for the next call at the same width.
+    fn cached_loads(&self, width: f64) -> Result<Vec<Vec<f64>>, IdentifyError> {
+        let mut cache = self.loads.lock().map_err(|_| {
+            IdentifyError::Factorization("a previous load evaluation panicked".into())
+        })?;
+        if let Some((at, loads)) = cache.as_ref()
+            && *at == width
+        {
+            return Ok(loads.clone());
+        }
+        let loads = self.unit_loads(width)?;
+        *cache = Some((width, loads.clone()));
+        Ok(loads)
+    }
+
+    /// The unit loads `b[2 l + c]` (full dof vectors) of a punch of
+    /// `width` at every load point.
+    fn unit_loads(&self, width: f64) -> Result<Vec<Vec<f64>>, IdentifyError> {
+        match &self.system {
+            System::Plane(s) => self.unit_loads_on(s.mesh(), width),
+            System::Slab(s) => self.unit_loads_on(s.mesh(), width),
+        }
+    }
+
+    fn unit_loads_on<const D: usize>(
+        &self,
+        mesh: &Mesh<D>,
+        width: f64,
+    ) -> Result<Vec<Vec<f64>>, IdentifyError> {
+        let locator = Locator::new(mesh);
+        let [w, d, t] = self.extent;
+        let tol = 1e-9 * w.max(d);
+        let mut loads = Vec::with_capacity(2 * self.load_points.len());
+        for (i, &p) in self.load_points.iter().enumerate() {
+            // The patch runs along the face the load point lies on.
+            let along = if p[1] <= tol || p[1] >= d - tol { 0 } else { 1 };
+            let extent = (0.0, [w, d][along]);
+            let rule = patch_rule(p[along], width, &self.lines[along], extent);
+            for c in 0..2 {
+                let mut load = vec![0.0; mesh.dof_count()];
+                for &(s, weight) in &rule {
+                    let mut point = p;
+                    point[along] = s;
+                    add_unit_force(&locator, &mut load, point, c, weight, t)
+                        .map_err(|_| outside("load point", i, p))?;
+                }
+                loads.push(load);
+            }
+        }
+        Ok(loads)
     }
 
     /// Marker-level sensitivities $H\,\partial U/\partial p$ of every unit
@@ -206,10 +308,9 @@ fn outside(what: &str, index: usize, p: [f64; 2]) -> IdentifyError {
     ))
 }
 
-/// The plane system: markers interpolated in the plane, unit point forces.
+/// The plane system: markers interpolated in the plane.
 fn plane_system(
     setup: &ProbeSetup,
-    load_points: &[[f64; 2]],
     mesh: Mesh<2>,
     formulation: Formulation,
 ) -> Result<FeSystem<2>, IdentifyError> {
@@ -220,27 +321,11 @@ fn plane_system(
         .enumerate()
         .map(|(i, &p)| locator.weights(p).ok_or_else(|| outside("marker", i, p)))
         .collect::<Result<Vec<_>, _>>()?;
-    let mut loads = Vec::with_capacity(2 * load_points.len());
-    for (i, &p) in load_points.iter().enumerate() {
-        for c in 0..2 {
-            let mut force = [0.0; 2];
-            force[c] = 1.0;
-            let mut load = vec![0.0; mesh.dof_count()];
-            add_point_force(&locator, &mut load, p, force)
-                .map_err(|_| outside("load point", i, p))?;
-            loads.push(load);
-        }
-    }
-    FeSystem::new(mesh, formulation, &setup.fixed, markers, loads)
+    FeSystem::new(mesh, formulation, &setup.fixed, markers)
 }
 
-/// The slab system: markers on the top face $z = t/2$, each unit load a
-/// uniform line load through the thickness at the load point.
-fn slab_system(
-    setup: &ProbeSetup,
-    load_points: &[[f64; 2]],
-    mesh: Mesh<3>,
-) -> Result<FeSystem<3>, IdentifyError> {
+/// The slab system: markers on the top face $z = t/2$.
+fn slab_system(setup: &ProbeSetup, mesh: Mesh<3>) -> Result<FeSystem<3>, IdentifyError> {
     let half = 0.5 * setup.thickness;
     let locator = Locator::new(&mesh);
     let markers = setup
@@ -253,32 +338,45 @@ fn slab_system(
                 .ok_or_else(|| outside("marker", i, p))
         })
         .collect::<Result<Vec<_>, _>>()?;
-    let mut loads = Vec::with_capacity(2 * load_points.len());
-    for (i, &p) in load_points.iter().enumerate() {
-        for c in 0..2 {
-            let mut density = [0.0; 3];
-            density[c] = 1.0 / setup.thickness;
-            let line = LineDensity::Sampled {
-                arclength: vec![0.0, setup.thickness],
-                density: vec![density; 2],
-            };
-            let mut load = vec![0.0; mesh.dof_count()];
-            let total = add_line_load(
-                &locator,
-                &mut load,
-                [p[0], p[1], -half],
-                [p[0], p[1], half],
-                &line,
-            )
-            .map_err(|_| outside("load point", i, p))?;
-            // The quadrature must carry the whole unit force into the mesh.
-            if (total[c] - 1.0).abs() > 1e-9 {
-                return Err(outside("load point", i, p));
-            }
-            loads.push(load);
-        }
+    FeSystem::new(mesh, Formulation::Solid, &setup.fixed, markers)
+}
+
+/// Adds `weight` times a unit force along axis `axis` at the boundary
+/// point `point`: a point force in the plane (`D = 2`), a uniform line load
+/// of density `weight / thickness` through the thickness of the slab
+/// (`D = 3`). Fails when the point (or the line) leaves the mesh.
+fn add_unit_force<const D: usize>(
+    locator: &Locator<'_, D>,
+    load: &mut [f64],
+    point: [f64; 2],
+    axis: usize,
+    weight: f64,
+    thickness: f64,
+) -> Result<(), IdentifyError> {
+    let mut force = [0.0; D];
+    let (mut start, mut end) = ([0.0; D], [0.0; D]);
+    start[..2].copy_from_slice(&point);
+    end[..2].copy_from_slice(&point);
+    if D == 2 {
+        force[axis] = weight;
+        add_point_force(locator, load, start, force)?;
+        return Ok(());
     }
-    FeSystem::new(mesh, Formulation::Solid, &setup.fixed, markers, loads)
+    force[axis] = weight / thickness;
+    start[2] = -0.5 * thickness;
+    end[2] = 0.5 * thickness;
+    let line = LineDensity::Sampled {
+        arclength: vec![0.0, thickness],
+        density: vec![force; 2],
+    };
+    let total = add_line_load(locator, load, start, end, &line)?;
+    // The quadrature must carry the whole force into the mesh.
+    if (total[axis] - weight).abs() > 1e-9 * weight.abs() {
+        return Err(IdentifyError::Inconsistent(
+            "line load leaves the mesh".into(),
+        ));
+    }
+    Ok(())
 }
 
 /// The point of the phantom's boundary where a probe with its tip at `tip`

@@ -5,7 +5,7 @@
 
 use crate::error::IdentifyError;
 use crate::model::{ProbeModel, project_to_boundary};
-use crate::options::IdentifyOptions;
+use crate::options::{IdentifyOptions, ProbeLoad};
 use crate::probe::{MIN_MARKERS, ProbeData};
 use crate::result::NoiseSource;
 
@@ -79,7 +79,10 @@ impl Observations {
         frame_loads: &[usize],
         options: &IdentifyOptions,
     ) -> Result<Self, IdentifyError> {
-        let radius = options.exclusion_radius.unwrap_or(model.marker_spacing());
+        let radius = options.exclusion_radius.unwrap_or(match options.probe {
+            ProbeLoad::Point => model.marker_spacing(),
+            ProbeLoad::FlatPunch { .. } => 0.0,
+        });
         let noise = if let Some(sigma) = options.marker_sigma {
             NoiseSource::Stated(sigma)
         } else if data

@@ -26,6 +26,37 @@ pub enum PlaneModel {
     Slab,
 }
 
+/// How the probe's force enters the model.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum ProbeLoad {
+    /// A point force at the boundary point nearest to the tip (the paper's
+    /// model; a line load through the thickness in the slab). Its
+    /// displacement is singular at the load, so markers near it must be
+    /// left out (`exclusion_radius`).
+    Point,
+    /// A rigid, frictionless flat punch of contact width $a$ centred on
+    /// that point: the force spread along the face with the punch pressure
+    /// $p(s) = F / (\pi\sqrt{(a/2)^2 - s^2})$, $|s| < a/2$ (through the
+    /// whole thickness in the slab). The width is fitted with the material
+    /// unless `fit_width` is false.
+    FlatPunch {
+        /// The width (m), or where its fit starts; `None`: one marker
+        /// spacing.
+        width: Option<f64>,
+        /// Fit the width with E and nu (default), or hold it.
+        fit_width: bool,
+    },
+}
+
+impl Default for ProbeLoad {
+    fn default() -> Self {
+        ProbeLoad::FlatPunch {
+            width: None,
+            fit_width: true,
+        }
+    }
+}
+
 /// How elements are grouped into material regions, each with its own
 /// Young's modulus (one Poisson's ratio for all).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
@@ -108,10 +139,13 @@ pub struct IdentifyOptions {
     /// (default): linear interpolation between the two samples around the
     /// frame, the raw record.
     pub force_window: Option<f64>,
+    /// The probe's load: a flat punch of fitted width (default) or the
+    /// paper's point force.
+    pub probe: ProbeLoad,
     /// Markers closer than this to the load point are left out of the
-    /// residuals (m): a point load's displacement is singular there and
-    /// the blunt probe's contact patch is not modelled. Default: one marker
-    /// spacing.
+    /// residuals (m). Default: none with the flat punch, which models the
+    /// contact patch; one marker spacing with the point force, whose
+    /// displacement is singular at the load.
     pub exclusion_radius: Option<f64>,
     /// Fit one modulus per trial (Poisson's ratio held at the global value)
     /// and a linear drift of the modulus with the day.
@@ -136,6 +170,7 @@ impl Default for IdentifyOptions {
             marker_sigma: None,
             contact_force: None,
             force_window: None,
+            probe: ProbeLoad::default(),
             exclusion_radius: None,
             per_trial: true,
             lsq: needle_lsq::Options::default(),
@@ -213,6 +248,17 @@ impl IdentifyOptions {
             {
                 return bad(field, v, "must be positive and finite");
             }
+        }
+        if let ProbeLoad::FlatPunch {
+            width: Some(width), ..
+        } = self.probe
+            && !(width.is_finite() && width > 0.0)
+        {
+            return bad(
+                "options.probe.width",
+                width,
+                "must be positive and finite (ProbeLoad::Point is the point force)",
+            );
         }
         if let Some(v) = self.exclusion_radius
             && !(v.is_finite() && v >= 0.0)

@@ -13,33 +13,43 @@ use crate::model::ProbeModel;
 use crate::observe::Observations;
 
 /// Equation (5) with whitened residuals
-/// $r_i = w_i\,(d_i - [P\,K(\theta)^{-1} f]_i)$ and the analytic Jacobian
-/// $\partial r_i/\partial\theta_p = -w_i\,[P\,\partial U/\partial\theta_p\,f]_i$.
+/// $r_i = w_i\,(d_i - [P\,K(\theta)^{-1} b(a)\,f]_i)$ and the analytic
+/// Jacobian $\partial r_i/\partial\theta_p = -w_i\,[P\,\partial U/\partial\theta_p\,f]_i$
+/// (the width's column by a difference of the load, see
+/// [`ProbeModel::width_sensitivity`]).
 ///
-/// Parameters: `tied`: $(E, \nu)$ with one modulus for every region;
-/// otherwise $(E_0, \dots, E_{R-1}, \nu)$.
+/// Parameters: `tied`: $(E, \nu, a)$ with one modulus for every region;
+/// otherwise $(E_0, \dots, E_{R-1}, \nu, a)$. The contact width $a$ is
+/// always the last; held (its column left zero) unless `width_free`.
 pub(crate) struct ProbeProblem<'a> {
     model: &'a ProbeModel,
     observations: &'a Observations,
     tied: bool,
+    width_free: bool,
     /// The unit-load response at the last residual point, reused by the
     /// Jacobian at the same point (the engine asks for both in turn).
     last: Mutex<Option<(Vec<f64>, Response)>>,
 }
 
 impl<'a> ProbeProblem<'a> {
-    pub fn new(model: &'a ProbeModel, observations: &'a Observations, tied: bool) -> Self {
+    pub fn new(
+        model: &'a ProbeModel,
+        observations: &'a Observations,
+        tied: bool,
+        width_free: bool,
+    ) -> Self {
         Self {
             model,
             observations,
             tied,
+            width_free,
             last: Mutex::new(None),
         }
     }
 
     /// Materials for the parameter vector.
     pub fn materials(&self, params: &[f64]) -> Result<Materials, EvaluationError> {
-        let nu = params[params.len() - 1];
+        let nu = params[params.len() - 2];
         let regions = self.model.region_count();
         let pairs: Vec<(f64, f64)> = (0..regions)
             .map(|r| (if self.tied { params[0] } else { params[r] }, nu))
@@ -51,17 +61,24 @@ impl<'a> ProbeProblem<'a> {
         let cached = self.last.lock().map_err(|_| "cache poisoned")?.take();
         match cached {
             Some((at, response)) if at == params => Ok(response),
-            _ => Ok(self.model.respond(&self.materials(params)?)?),
+            _ => Ok(self
+                .model
+                .respond(&self.materials(params)?, width(params))?),
         }
     }
+}
+
+/// The contact width of a parameter vector.
+fn width(params: &[f64]) -> f64 {
+    params[params.len() - 1]
 }
 
 impl Problem for ProbeProblem<'_> {
     fn num_parameters(&self) -> usize {
         if self.tied {
-            2
+            3
         } else {
-            self.model.region_count() + 1
+            self.model.region_count() + 2
         }
     }
 
@@ -70,7 +87,9 @@ impl Problem for ProbeProblem<'_> {
     }
 
     fn residuals(&self, params: &[f64], out: &mut [f64]) -> Result<(), EvaluationError> {
-        let response = self.model.respond(&self.materials(params)?)?;
+        let response = self
+            .model
+            .respond(&self.materials(params)?, width(params))?;
         for (r, row) in out.iter_mut().zip(&self.observations.rows) {
             *r = row.weight * (row.value - self.observations.predict(row, &response.markers));
         }
@@ -86,7 +105,11 @@ impl Problem for ProbeProblem<'_> {
         Some((|| {
             let response = self.response(params)?;
             let materials = self.materials(params)?;
-            let sensitivities = self.model.sensitivities(&materials, &response, self.tied)?;
+            let mut sensitivities = self.model.sensitivities(&materials, &response, self.tied)?;
+            if self.width_free {
+                sensitivities.push(self.model.width_sensitivity(&materials, width(params))?);
+            }
+            out.fill(0.0);
             for (j, derivative) in sensitivities.iter().enumerate() {
                 for (i, row) in self.observations.rows.iter().enumerate() {
                     out[(i, j)] = -row.weight * self.observations.predict(row, derivative);

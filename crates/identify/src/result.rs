@@ -235,6 +235,10 @@ pub struct MaterialFit {
     pub youngs_modulus: Estimate,
     /// Poisson's ratio of the homogeneous model.
     pub poisson_ratio: Estimate,
+    /// Contact width of the flat punch (m), fitted or held; `None` with the
+    /// point-force model.
+    #[serde(default)]
+    pub probe_width: Option<Estimate>,
     /// Per-region moduli when regions were asked for.
     pub regions: Option<RegionFit>,
     /// chi2 of the homogeneous fit (whitened residuals).
@@ -270,6 +274,9 @@ impl fmt::Display for MaterialFit {
         )?;
         writeln!(f, "  Young's modulus  E  = {} Pa", self.youngs_modulus)?;
         writeln!(f, "  Poisson's ratio  nu = {}", self.poisson_ratio)?;
+        if let Some(width) = &self.probe_width {
+            writeln!(f, "  probe width      a  = {width} m")?;
+        }
         writeln!(
             f,
             "  chi2/dof = {:.3} (dof {}), noise {:?}",

@@ -11,7 +11,7 @@ use support::Scenario;
 fn recovers_paper_material_at_4_micrometre_noise() {
     let scenario = Scenario::paper();
     let data = scenario.probe_data(4e-6, 1);
-    let fit = identify_from_data(&data, &IdentifyOptions::default()).unwrap();
+    let fit = identify_from_data(&data, &support::point_force()).unwrap();
     println!("{fit}");
     let e_error = fit.youngs_modulus.value / scenario.youngs_modulus - 1.0;
     let nu_error = fit.poisson_ratio.value - scenario.poisson_ratio;
@@ -45,7 +45,7 @@ fn locking_table() {
                 refinement,
                 marker_sigma: Some(4e-6),
                 per_trial: false,
-                ..IdentifyOptions::default()
+                ..support::point_force()
             };
             let fit = identify_from_data(&data, &options).unwrap();
             let flags: Vec<String> = fit.flags.iter().map(|f| f.to_string()).collect();
@@ -70,7 +70,7 @@ fn converges_to_the_same_fit_from_any_start() {
     let base = IdentifyOptions {
         refinement: 1,
         per_trial: false,
-        ..IdentifyOptions::default()
+        ..support::point_force()
     };
     let reference = identify_from_data(&data, &base).unwrap();
     for start_e in [1e3, 3e4, 1e6] {
@@ -107,7 +107,7 @@ fn per_trial_moduli_expose_drift() {
         ..Scenario::paper()
     };
     let data = scenario.probe_data(4e-6, 12);
-    let fit = identify_from_data(&data, &IdentifyOptions::default()).unwrap();
+    let fit = identify_from_data(&data, &support::point_force()).unwrap();
     println!("{fit}");
     for trial in &fit.trials {
         let truth = scenario.youngs_modulus * (1.0 + scenario.drift_per_day * trial.day);
@@ -138,8 +138,7 @@ fn per_trial_moduli_expose_drift() {
         drift_per_day: 0.0,
         ..scenario
     };
-    let fit =
-        identify_from_data(&steady.probe_data(4e-6, 13), &IdentifyOptions::default()).unwrap();
+    let fit = identify_from_data(&steady.probe_data(4e-6, 13), &support::point_force()).unwrap();
     assert!(
         !fit.flags
             .iter()
@@ -164,7 +163,7 @@ fn per_region_moduli_of_a_layered_phantom() {
             boundaries: vec![0.0375],
         },
         per_trial: false,
-        ..IdentifyOptions::default()
+        ..support::point_force()
     };
     let fit = identify_from_data(&data, &options).unwrap();
     println!("{fit}");
@@ -214,7 +213,7 @@ fn model_matches_independent_solve_on_the_same_mesh() {
     let model = ProbeModel::new(&data.setup, &points, &spec).unwrap();
     let materials =
         Materials::from_parameters(&[(scenario.youngs_modulus, scenario.poisson_ratio)]).unwrap();
-    let response = model.respond(&materials).unwrap();
+    let response = model.respond(&materials, 0.0).unwrap();
     let mut worst: f64 = 0.0;
     let mut largest: f64 = 0.0;
     for (l, site) in truth.iter().enumerate() {
@@ -256,12 +255,15 @@ fn sensitivities_match_finite_differences() {
     let (e0, e1, nu) = (20e3, 35e3, 0.45);
     let at = |e0: f64, e1: f64, nu: f64| {
         model
-            .respond(&Materials::from_parameters(&[(e0, nu), (e1, nu)]).unwrap())
+            .respond(
+                &Materials::from_parameters(&[(e0, nu), (e1, nu)]).unwrap(),
+                0.0,
+            )
             .unwrap()
             .markers
     };
     let materials = Materials::from_parameters(&[(e0, nu), (e1, nu)]).unwrap();
-    let response = model.respond(&materials).unwrap();
+    let response = model.respond(&materials, 0.0).unwrap();
     let analytic = model.sensitivities(&materials, &response, false).unwrap();
     let steps = [1e-4 * e0, 1e-4 * e1, 1e-6];
     let perturbed = |j: usize, h: f64| match j {
@@ -284,7 +286,7 @@ fn sensitivities_match_finite_differences() {
     }
     // Tied: one modulus for both regions, dU/dE = -U/E.
     let tied_materials = Materials::from_parameters(&[(e0, nu), (e0, nu)]).unwrap();
-    let tied_response = model.respond(&tied_materials).unwrap();
+    let tied_response = model.respond(&tied_materials, 0.0).unwrap();
     let tied = model
         .sensitivities(&tied_materials, &tied_response, true)
         .unwrap();

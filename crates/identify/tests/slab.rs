@@ -199,11 +199,11 @@ fn thin_slab_approaches_plane_stress() {
     let materials = Materials::from_parameters(&[(25.3e3, 0.3)]).unwrap();
     let slab = ProbeModel::new(&setup, &points, &spec(PlaneModel::Slab, 1))
         .unwrap()
-        .respond(&materials)
+        .respond(&materials, 0.0)
         .unwrap();
     let stress = ProbeModel::new(&setup, &points, &spec(PlaneModel::Stress, 1))
         .unwrap()
-        .respond(&materials)
+        .respond(&materials, 0.0)
         .unwrap();
     for (a, b) in slab.markers.iter().zip(&stress.markers) {
         let difference: f64 = a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum();
@@ -224,12 +224,12 @@ fn slab_sensitivities_match_finite_differences() {
     let (e, nu) = (25.3e3, 0.45);
     let at = |e: f64, nu: f64| {
         model
-            .respond(&Materials::from_parameters(&[(e, nu)]).unwrap())
+            .respond(&Materials::from_parameters(&[(e, nu)]).unwrap(), 0.0)
             .unwrap()
             .markers
     };
     let materials = Materials::from_parameters(&[(e, nu)]).unwrap();
-    let response = model.respond(&materials).unwrap();
+    let response = model.respond(&materials, 0.0).unwrap();
     for tied in [true, false] {
         let analytic = model.sensitivities(&materials, &response, tied).unwrap();
         for (j, h) in [(0, 1e-4 * e), (1, 1e-6)] {

@@ -114,7 +114,18 @@ impl Body {
             Assembly::Plane(a) => a.mesh().boundary_facets(),
             Assembly::Slab(a) => a.mesh().boundary_facets(),
         };
-        let locator = Locator::new(&nodes, &elements, npe, dim, element_size, p.width, p.depth);
+        // Buckets of half the element size hold the elements of at most
+        // about two by two element columns: fewer candidates per search
+        // than buckets of a whole element, which straddle up to three.
+        let locator = Locator::new(
+            &nodes,
+            &elements,
+            npe,
+            dim,
+            element_size / 2.0,
+            p.width,
+            p.depth,
+        );
         let mut bounds = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
         for n in &nodes {
             for c in 0..3 {
@@ -252,12 +263,18 @@ impl Body {
         Some(Location { element, shape })
     }
 
-    /// The displacement gradient $\partial u_i/\partial X_j$ at `point`
-    /// (zero rows and columns beyond the dimension), if inside.
-    pub fn gradient(&self, point: [f64; 3], u: &[f64]) -> Option<[[f64; 3]; 3]> {
+    /// The displacement and its gradient $\partial u_i/\partial X_j$ at
+    /// `point` (zero rows and columns beyond the dimension), if inside:
+    /// one point location for both, as Newton's method needs them together.
+    pub fn value_and_gradient(
+        &self,
+        point: [f64; 3],
+        u: &[f64],
+    ) -> Option<([f64; 3], [[f64; 3]; 3])> {
         let (element, xi) = self.locator.find(point, self.dim)?;
-        let (_, reference) = values_and_gradients(self.dim, self.npe, &xi[..self.dim]);
+        let (shape, reference) = values_and_gradients(self.dim, self.npe, &xi[..self.dim]);
         let inverse = &self.locator.maps[element].1;
+        let mut v = [0.0; 3];
         let mut h = [[0.0; 3]; 3];
         for (a, &n) in self.element(element).iter().enumerate() {
             // Physical gradient of N_a: J^-T times its reference gradient.
@@ -266,12 +283,13 @@ impl Body {
                 g[j] = (0..self.dim).map(|k| inverse[k][j] * reference[a][k]).sum();
             }
             for i in 0..self.dim {
+                v[i] += shape[a] * u[n * self.dim + i];
                 for j in 0..self.dim {
                     h[i][j] += u[n * self.dim + i] * g[j];
                 }
             }
         }
-        Some(h)
+        Some((v, h))
     }
 
     /// The displacement at a located point.

@@ -274,12 +274,11 @@ fn place(body: &Body, run: &NeedleRun, tip: f64, u: &[f64], shaft_step: f64) -> 
     let line = run.plan.line;
     let mut x_entry = [line, 0.0, 0.0];
     for _ in 0..50 {
-        let d = displacement(body, x_entry, u);
-        let slope = 1.0
-            + body
-                .gradient(x_entry, u)
-                .expect("the entry lies on the front face")[0][0];
-        let step = (x_entry[0] + d[0] - line) / slope;
+        clamp_inside(body, &mut x_entry);
+        let (d, gradient) = body
+            .value_and_gradient(x_entry, u)
+            .expect("the entry lies on the front face");
+        let step = (x_entry[0] + d[0] - line) / (1.0 + gradient[0][0]);
         x_entry[0] -= step;
         if step.abs() < 1e-13 {
             break;
@@ -307,11 +306,10 @@ fn material_point(body: &Body, p: [f64; 3], u: &[f64]) -> [f64; 3] {
     let mut x = p;
     for _ in 0..50 {
         clamp_inside(body, &mut x);
-        let d = displacement(body, x, u);
-        let r = [x[0] + d[0] - p[0], x[1] + d[1] - p[1], 0.0];
-        let mut jacobian = body
-            .gradient(x, u)
+        let (d, mut jacobian) = body
+            .value_and_gradient(x, u)
             .expect("points are clamped into the body");
+        let r = [x[0] + d[0] - p[0], x[1] + d[1] - p[1], 0.0];
         jacobian[2] = [0.0; 3];
         for k in 0..3 {
             jacobian[k][2] = 0.0;

@@ -6,10 +6,10 @@
 //! prescribed, $K_{ff} u_f = f_f - K_{fp} u_p$; the reactions are
 //! $r = K u - f$ on the held components.
 
-use faer::Side;
-use faer::linalg::solvers::Solve;
-use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholesky, factorize_symbolic_cholesky};
 use faer::sparse::{SparseColMat, SymbolicSparseColMat, Triplet};
+use faer::{Conj, Par, Side, get_global_parallelism};
 
 use crate::error::SynthError;
 
@@ -82,11 +82,22 @@ impl Stiffness {
 }
 
 /// $K_{ff}$ factorised for one set of held components.
+///
+/// The factorisation may run in parallel; the solves run on the calling
+/// thread. A solve streams the whole factor $L$ (some 150 MB for the
+/// default slab) through memory twice, whatever the number of right-hand
+/// sides, and is bound by memory bandwidth: splitting it over threads
+/// saves no time on a shared machine and costs their synchronisation,
+/// while the callers already solve for all trials at once and compute the
+/// load placements in parallel.
 pub(crate) struct Factorised {
     /// Reduced index of each dof, `usize::MAX` when held.
     reduced: Vec<usize>,
     free: Vec<usize>,
-    llt: Llt<usize, f64>,
+    /// Boxed: the symbolic structure is large and `Factorised` is moved
+    /// about inside enums.
+    symbolic: Box<SymbolicCholesky<usize>>,
+    values: Vec<f64>,
 }
 
 impl Factorised {
@@ -127,11 +138,36 @@ impl Factorised {
         }
         let symbolic = SymbolicSparseColMat::new_checked(m, m, col_ptr, None, row_idx);
         let matrix = SparseColMat::new(symbolic, values);
-        let symbolic = SymbolicLlt::try_new(matrix.symbolic(), Side::Lower)
+        let symbolic = factorize_symbolic_cholesky(
+            matrix.symbolic(),
+            Side::Lower,
+            Default::default(),
+            Default::default(),
+        )
+        .map_err(|e| failed(format!("{e:?}")))?;
+        let mut factor = vec![0.0; symbolic.len_val()];
+        let par = get_global_parallelism();
+        let mut scratch = MemBuffer::try_new(
+            symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
+        )
+        .map_err(|e| failed(format!("{e:?}")))?;
+        symbolic
+            .factorize_numeric_llt(
+                &mut factor,
+                matrix.as_ref(),
+                Side::Lower,
+                Default::default(),
+                par,
+                MemStack::new(&mut scratch),
+                Default::default(),
+            )
             .map_err(|e| failed(format!("{e:?}")))?;
-        let llt = Llt::try_new_with_symbolic(symbolic, matrix.as_ref(), Side::Lower)
-            .map_err(|e| failed(format!("{e:?}")))?;
-        Ok(Self { reduced, free, llt })
+        Ok(Self {
+            reduced,
+            free,
+            symbolic: Box::new(symbolic),
+            values: factor,
+        })
     }
 
     /// Solves for several load vectors at once (full size; entries on held
@@ -144,7 +180,16 @@ impl Factorised {
                 rhs[(r, c)] = f[dof];
             }
         }
-        self.llt.solve_in_place(rhs.as_mut());
+        let mut scratch = MemBuffer::new(
+            self.symbolic
+                .solve_in_place_scratch::<f64>(loads.len(), Par::Seq),
+        );
+        LltRef::new(&self.symbolic, &self.values).solve_in_place_with_conj(
+            Conj::No,
+            rhs.as_mut(),
+            Par::Seq,
+            MemStack::new(&mut scratch),
+        );
         loads
             .iter()
             .enumerate()

@@ -18,10 +18,21 @@ use needle_fem::load::add_point_force;
 use needle_fem::locate::Locator;
 use needle_fem::material::{Formulation, Materials};
 use needle_fem::mesh::{Face, MarkerGrid, RectangleMesh};
-use needle_identify::{MarkerDisplacement, ProbeData, ProbeFrame, ProbeSetup, ProbeTrial};
+use needle_identify::{
+    IdentifyOptions, MarkerDisplacement, ProbeData, ProbeFrame, ProbeLoad, ProbeSetup, ProbeTrial,
+};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
+
+/// The default options with the paper's point-force probe, the model that
+/// matches this truth (whose probe is a point force).
+pub fn point_force() -> IdentifyOptions {
+    IdentifyOptions {
+        probe: ProbeLoad::Point,
+        ..IdentifyOptions::default()
+    }
+}
 
 /// A probing campaign on the default phantom geometry.
 #[derive(Debug, Clone)]
