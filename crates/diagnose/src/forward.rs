@@ -22,7 +22,12 @@
 //! - Needle frame: a line load of density $q(s)\,\hat d$,
 //!   $q(s) = q_0 + \sum_k \Delta q_k(s)$ (effects), on the material line
 //!   whose deformed image is the needle, from the dragged-in entry point to
-//!   the tip, $s$ the spatial arclength from the entry (see `place`).
+//!   the tip, $s$ the spatial arclength from the entry (see `place`). The
+//!   plane model finds that line; the slab loads the same one. In 3-D the
+//!   displacement under a line load grows like $\ln r$ towards the line,
+//!   so the slab's own value on the needle is set by its mesh, not by the
+//!   physics (`docs/truth-world.md`), and iterating on it would also cost
+//!   a back-substitution of the large slab factor per round.
 //! - Needle force sample: $F = \hat d \int_0^{L'} q(s)\,ds$ with the
 //!   inserted length $L' = L - \delta$, the entry's drag $\delta$ per unit
 //!   length interpolated in $L$ between the trial's frames.
@@ -246,7 +251,8 @@ impl Forward {
         columns: &[Column],
         out: &mut [Vec<[f64; 2]>],
         entry_offsets: &mut [f64],
-    ) -> Result<(), DiagnoseError> {
+        given: Option<&[Placement]>,
+    ) -> Result<Vec<Placement>, DiagnoseError> {
         let context = &obs.trials[trial];
         let moduli = Self::moduli(body, model, p, context);
         let factorized = body.factorized(&moduli, model.baseline(p).poisson_ratio, supports)?;
@@ -275,16 +281,22 @@ impl Forward {
             }
         }
         if needles.is_empty() {
-            return Ok(());
+            return Ok(Vec::new());
         }
         // Place the load consistently with the displacement it causes
-        // (see `place`), starting from the spatial line.
-        let mut placements: Vec<Placement> = needles
-            .iter()
-            .map(|(_, _, shaft)| Placement::spatial(shaft))
-            .collect();
+        // (see `place`), starting from the spatial line, unless given.
+        let (mut placements, rounds) = match given {
+            Some(given) => (given.to_vec(), 0),
+            None => (
+                needles
+                    .iter()
+                    .map(|(_, _, shaft)| Placement::spatial(shaft))
+                    .collect(),
+                self.placement_rounds,
+            ),
+        };
         let mut mixings: Vec<Mixing> = needles.iter().map(|_| Mixing::default()).collect();
-        for round in 0..=self.placement_rounds {
+        for round in 0..=rounds {
             let loads = needles
                 .iter()
                 .zip(&placements)
@@ -303,7 +315,7 @@ impl Forward {
                 .collect::<Result<Vec<_>, _>>()?;
             let refs: Vec<&[f64]> = loads.iter().map(|l| l.as_slice()).collect();
             let solutions = factorized.entry.problem.displacements_many(&refs)?;
-            if round < self.placement_rounds {
+            if round < rounds {
                 placements = needles
                     .iter()
                     .zip(&placements)
@@ -327,7 +339,7 @@ impl Forward {
                 entry_offsets[k] += weight * placement.entry_offset;
             }
         }
-        Ok(())
+        Ok(placements)
     }
 
     /// Predicts every observation at parameters `p`.
@@ -393,20 +405,21 @@ impl Forward {
             }
             let mut displacement = vec![vec![[0.0; 2]; obs.rest.len()]; columns.len()];
             let mut entry_offsets = vec![0.0; columns.len()];
-            if plane_weight != 0.0 {
-                self.add_columns(
-                    &self.plane,
-                    plane_weight,
-                    model,
-                    p,
-                    obs,
-                    first,
-                    supports,
-                    &columns,
-                    &mut displacement,
-                    &mut entry_offsets,
-                )?;
-            }
+            // The plane model always runs (at weight 0 if need be): the
+            // slab takes its needle placement (see the module doc).
+            let placed = self.add_columns(
+                &self.plane,
+                plane_weight,
+                model,
+                p,
+                obs,
+                first,
+                supports,
+                &columns,
+                &mut displacement,
+                &mut entry_offsets,
+                None,
+            )?;
             if slab_weight != 0.0 {
                 self.add_columns(
                     &self.slab,
@@ -419,6 +432,7 @@ impl Forward {
                     &columns,
                     &mut displacement,
                     &mut entry_offsets,
+                    Some(&placed),
                 )?;
             }
             for (k, &f) in frames.iter().enumerate() {
@@ -658,6 +672,17 @@ mod tests {
         let total = 10.0 * length + 0.05;
         assert!((values[m] - total * -(0.1f64.sin())).abs() < 1e-12);
         assert!((values[m + 1] - total * 0.1f64.cos()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn entry_ratio_is_interpolated_between_frames_and_held_beyond() {
+        let table = [(0.01, 0.04), (0.03, 0.06), (0.03, 0.07), (0.05, 0.05)];
+        assert_eq!(interpolate_ratio(&[], 0.02), 0.0);
+        assert_eq!(interpolate_ratio(&table[..1], 0.5), 0.04);
+        assert_eq!(interpolate_ratio(&table, 0.001), 0.04);
+        assert_eq!(interpolate_ratio(&table, 0.08), 0.05);
+        assert!((interpolate_ratio(&table, 0.02) - 0.05).abs() < 1e-15);
+        assert!((interpolate_ratio(&table, 0.04) - 0.06).abs() < 1e-15);
     }
 
     #[test]
