@@ -46,8 +46,11 @@
 //! for a unit force on every dof the needle line can load; a frame's $G$ is
 //! then that response times the consistent nodal loads of its hat functions
 //! (`needle-fem`'s line load), so a frame costs a few small dense solves.
-//! The material tip is found by a fixed point on the model's own mid-plane
-//! displacement at the tip (the tool reports the spatial tip).
+//! The load acts on the material points whose deformed images lie on the
+//! needle, from the deformed front face to the tip, with the density per
+//! length of needle: placed first in the measured displacement, then in
+//! the model's own mid-plane field of the previous fit, a fixed number of
+//! rounds (`place`).
 //!
 //! Bad input gives a [`ForceError`] naming what was wrong (too few markers,
 //! markers not on a grid, a trial that is not a needle insertion or has no
@@ -74,6 +77,7 @@ mod error;
 mod estimate;
 mod nodal;
 mod observe;
+mod place;
 mod plot;
 mod regularise;
 mod respond;

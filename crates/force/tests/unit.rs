@@ -641,6 +641,9 @@ mod figures {
         ShaftDistribution {
             t: 0.0,
             entry: [0.0, 0.0],
+            entry_offset: 0.0,
+            material_tip: [0.0, length],
+            placement_change: 0.0,
             length,
             stations: basis.stations.clone(),
             density: vec![q; basis.len()],
