@@ -16,9 +16,10 @@ use serde::{Deserialize, Serialize};
 use crate::error::ForceError;
 use crate::observe::{Frame, GridIndex, Insertion};
 use crate::place::{Needle, Placement};
-use crate::regularise::{LambdaChoice, Regularisation, solve_regularised};
+use crate::regularise::{LambdaChoice, Regularisation};
 use crate::respond::{MaterialField, ModelOptions, ShaftResponse};
 use crate::shaft::{ShaftBasis, ShaftPath, Smoothness, interpolate_displacement};
+use crate::tip::{TipPrior, TipZone, fit_with_tip_prior};
 
 /// Options of the regularised estimator.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -29,18 +30,26 @@ pub struct EstimatorOptions {
     pub regularisation: Regularisation,
     /// The smoothness prior.
     pub smoothness: Smoothness,
+    /// How the smoothness prior treats the tip.
+    pub tip: TipPrior,
     /// Largest spacing of the density stations along the shaft (m).
     pub shaft_spacing: f64,
 }
 
 impl EstimatorOptions {
     /// The 3-D slab estimator (equation (6)) with `regularisation`:
-    /// first-difference prior, stations at most 1.5 mm apart.
+    /// first-difference prior, stations at most 1.5 mm apart; the tip
+    /// prior chosen by the evidence ([`TipPrior::Evidence`]) with
+    /// [`Regularisation::MarginalLikelihood`], uniform with the other rules.
     pub fn slab(regularisation: Regularisation) -> Self {
         Self {
             model: ModelOptions::slab(),
             regularisation,
             smoothness: Smoothness::FirstDifference,
+            tip: match regularisation {
+                Regularisation::MarginalLikelihood { .. } => TipPrior::Evidence,
+                _ => TipPrior::Uniform,
+            },
             shaft_spacing: 1.5e-3,
         }
     }
@@ -91,6 +100,9 @@ pub struct ShaftDistribution {
     /// [`LambdaChoice::GcvAfterUnreachableDiscrepancy`] flag a model that
     /// does not fit the data to the stated noise.
     pub choice: LambdaChoice,
+    /// The tip zone of the smoothness prior the fit used
+    /// ([`TipZone::UNIFORM`] when the evidence chose none).
+    pub tip_zone: TipZone,
     /// Root-mean-square marker residual (m).
     pub residual_rms: f64,
     /// Marker coordinates used.
@@ -253,7 +265,8 @@ impl ShaftEstimator {
         // Whitening: per-row tracking sigma if the track has it, else the
         // stated noise, else 1 (GCV does not depend on the scale).
         let stated = match self.options.regularisation {
-            Regularisation::Discrepancy { sigma } => Some(sigma),
+            Regularisation::Discrepancy { sigma }
+            | Regularisation::MarginalLikelihood { sigma } => Some(sigma),
             _ => insertion.marker_sigma,
         };
         let mut rows = Vec::new();
@@ -279,13 +292,22 @@ impl ShaftEstimator {
         }
         let a = DMatrix::from_fn(rows.len(), basis.len(), |r, j| weights[r] * g[(rows[r], j)]);
         let b = DVector::from_fn(rows.len(), |r, _| weights[r] * data[r]);
-        let l = basis.difference_operator(self.options.smoothness);
         let regularisation = match self.options.regularisation {
             // The data are whitened already: unit noise.
             Regularisation::Discrepancy { .. } => Regularisation::Discrepancy { sigma: 1.0 },
+            Regularisation::MarginalLikelihood { .. } => {
+                Regularisation::MarginalLikelihood { sigma: 1.0 }
+            }
             other => other,
         };
-        let fit = solve_regularised(&a, &b, &l, regularisation)?;
+        let (fit, tip_zone) = fit_with_tip_prior(
+            &a,
+            &b,
+            &basis,
+            self.options.smoothness,
+            regularisation,
+            self.options.tip,
+        )?;
         // Covariance of q for whitened data: C A^T A C, scaled by the
         // residual variance when the noise is not known.
         let noise_known = stated.is_some() || frame.sigma.is_some();
@@ -318,6 +340,7 @@ impl ShaftEstimator {
             integrated_sigma,
             lambda: fit.lambda,
             choice: fit.choice,
+            tip_zone,
             residual_rms: (residual / rows.len() as f64).sqrt(),
             data_count: rows.len(),
         })
@@ -342,6 +365,7 @@ struct Solved {
     integrated_sigma: f64,
     lambda: f64,
     choice: LambdaChoice,
+    tip_zone: TipZone,
     residual_rms: f64,
     data_count: usize,
 }
@@ -369,6 +393,7 @@ impl Solved {
             base_force: frame.base_force[0] * axis[0] + frame.base_force[1] * axis[1],
             lambda: self.lambda,
             choice: self.choice,
+            tip_zone: self.tip_zone,
             residual_rms: self.residual_rms,
             data_count: self.data_count,
         }

@@ -26,7 +26,10 @@
 //!   operator along the shaft ([`Smoothness`]) and $\lambda$ from the
 //!   discrepancy principle when the noise is known or generalised
 //!   cross-validation otherwise ([`Regularisation`]; the solve is
-//!   `needle-lsq`'s Tikhonov solver). With [`Model::Slab`] ($G$ from a 3-D
+//!   `needle-lsq`'s Tikhonov solver). With a known noise,
+//!   [`Regularisation::MarginalLikelihood`] takes $\lambda$ and a penalty
+//!   relaxed near the tip ([`TipPrior`]) from the marginal likelihood of
+//!   the data, so that the tip peak is not smoothed away. With [`Model::Slab`] ($G$ from a 3-D
 //!   Tet10 slab, the load on the mid-plane, the markers on the top face)
 //!   this is the paper's equation (6),
 //!   $$\min_{F_s} (u - G(E,\nu)F_s)^T(u - G(E,\nu)F_s),$$
@@ -75,6 +78,7 @@
 
 mod error;
 mod estimate;
+mod evidence;
 mod nodal;
 mod observe;
 mod place;
@@ -83,6 +87,7 @@ mod regularise;
 mod respond;
 mod series;
 mod shaft;
+mod tip;
 mod velocity;
 
 pub use error::ForceError;
@@ -105,4 +110,5 @@ pub use series::{
     average_series, distribution_error, integrated_vs_base, point_of,
 };
 pub use shaft::{ShaftBasis, ShaftPath, Smoothness};
+pub use tip::{TIP_RELAXATIONS, TIP_ZONES, TipPrior, TipZone, fit_with_tip_prior};
 pub use velocity::{ShaftWindow, VelocityPoint, density_vs_velocity, window_density};

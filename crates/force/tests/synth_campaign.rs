@@ -75,16 +75,28 @@ fn fitted_base_force(bundle: &LoadedBundle, trial: &str, t: f64, half: f64) -> f
     mf - stf / stt * mt
 }
 
+/// The two estimators compared: the discrepancy principle with the
+/// uniform first-difference prior (before session 6), and the marginal
+/// likelihood choosing the weight and the tip prior together.
+fn estimators(sigma: f64) -> [(&'static str, EstimatorOptions); 2] {
+    [
+        (
+            "discrepancy, uniform prior",
+            EstimatorOptions::slab(Regularisation::Discrepancy { sigma }),
+        ),
+        (
+            "marginal likelihood, tip prior",
+            EstimatorOptions::slab(Regularisation::MarginalLikelihood { sigma }),
+        ),
+    ]
+}
+
 /// Estimates every 30th frame past 5 mm (about 1 mm of depth apart at
-/// 3 mm/s) and prints the tables of `docs/force-inversion.md`; returns
-/// the largest |error| past 10 mm against the raw and the fitted base
-/// force, and the largest density error past 10 mm.
-fn measure(
-    scenario: &Scenario,
-    bundle: &LoadedBundle,
-    field: &MaterialField,
-    sigma: f64,
-) -> (f64, f64, f64) {
+/// 3 mm/s) with each of [`estimators`] and prints the tables of
+/// `docs/force-inversion.md`: per estimator the largest |error| past
+/// 10 mm against the raw and the fitted base force, and the largest and
+/// mean density error past 10 mm.
+fn measure(scenario: &Scenario, bundle: &LoadedBundle, field: &MaterialField, sigma: f64) {
     let needle = bundle
         .campaign
         .trials
@@ -103,16 +115,24 @@ fn measure(
         .step_by(30)
         .cloned()
         .collect();
-    let distributions = shaft_force_distributions(
-        &thinned,
-        field,
-        EstimatorOptions::slab(Regularisation::Discrepancy { sigma }),
-    )
-    .unwrap();
     let truth = truth_density(scenario);
+    for (name, options) in estimators(sigma) {
+        println!("{name}:");
+        let distributions = shaft_force_distributions(&thinned, field, options).unwrap();
+        summarise(bundle, &needle, &distributions, &truth);
+    }
+}
+
+fn summarise(
+    bundle: &LoadedBundle,
+    needle: &str,
+    distributions: &[ShaftDistribution],
+    truth: &impl Fn(f64) -> f64,
+) {
     let (mut raw, mut fitted, mut density): (f64, f64, f64) = (0.0, 0.0, 0.0);
-    for d in &distributions {
-        let base = fitted_base_force(bundle, &needle, d.t, 0.25);
+    let mut densities = Vec::new();
+    for d in distributions {
+        let base = fitted_base_force(bundle, needle, d.t, 0.25);
         let length = d.length;
         let e = distribution_error(d, |s| truth(length - s));
         let (raw_error, fitted_error) =
@@ -121,18 +141,19 @@ fn measure(
             raw = raw.max(raw_error.abs());
             fitted = fitted.max(fitted_error.abs());
             density = density.max(e.density);
+            densities.push(e.density);
         }
         print_row(d, base, raw_error, fitted_error, e.density);
     }
+    let mean = densities.iter().sum::<f64>() / densities.len().max(1) as f64;
     println!(
-        "largest past 10 mm: |error| vs raw base {raw:.4}, vs fitted base {fitted:.4}; density L2 error {density:.3}"
+        "largest past 10 mm: |error| vs raw base {raw:.4}, vs fitted base {fitted:.4}; density L2 error {density:.3} (mean {mean:.3})"
     );
-    (raw, fitted, density)
 }
 
 fn print_row(d: &ShaftDistribution, base: f64, raw: f64, fitted: f64, density: f64) {
     println!(
-        "inserted {:5.1} mm  entry offset {:.2} mm  tip X ({:.2}, {:.2}) mm  moved {:.0e} m  F {:.4} N  base raw {:.4} fitted {:.4}  error raw {:+.4} fitted {:+.4}  density L2 {:.3}  {:?}",
+        "inserted {:5.1} mm  entry offset {:.2} mm  tip X ({:.2}, {:.2}) mm  moved {:.0e} m  F {:.4} N  base raw {:.4} fitted {:.4}  error raw {:+.4} fitted {:+.4}  density L2 {:.3}  {:?}, tip zone {:.1} mm x {:e}",
         d.length * 1e3,
         d.entry_offset * 1e3,
         d.material_tip[0] * 1e3,
@@ -144,7 +165,9 @@ fn print_row(d: &ShaftDistribution, base: f64, raw: f64, fitted: f64, density: f
         raw,
         fitted,
         density,
-        d.choice
+        d.choice,
+        d.tip_zone.zone * 1e3,
+        d.tip_zone.relaxation
     );
 }
 
