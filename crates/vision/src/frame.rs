@@ -26,6 +26,14 @@ impl BitDepth {
     }
 }
 
+/// `level` rounded to the nearest integer (halves away from zero) and
+/// clamped to `[0, max]`. The rounding is done as the floor of `level + 1/2`
+/// in `f64` (exact for any `f32`), taken by truncation after clamping at
+/// zero, which gives `level.round()` bit for bit without a call to `roundf`.
+pub(crate) fn quantise(level: f32, max: f32) -> f32 {
+    ((f64::from(level.max(0.0)) + 0.5) as u64 as f32).min(max)
+}
+
 /// A grey frame: row-major grey levels (`pixels[row * width + column]`), as
 /// `f32` in the range of its bit depth. Pixel $(u, v)$ has its centre at
 /// column $u$, row $v$.
@@ -107,13 +115,15 @@ impl GreyFrame {
     /// is complete.
     pub fn write_png(&self, path: &Path) -> Result<(), VisionError> {
         let max = self.bit_depth.max_level();
-        let quantise = |p: f32| p.round().clamp(0.0, max);
         let image: DynamicImage = match self.bit_depth {
             BitDepth::Eight => DynamicImage::ImageLuma8(
                 ImageBuffer::<Luma<u8>, _>::from_raw(
                     self.width as u32,
                     self.height as u32,
-                    self.pixels.iter().map(|&p| quantise(p) as u8).collect(),
+                    self.pixels
+                        .iter()
+                        .map(|&p| quantise(p, max) as u8)
+                        .collect(),
                 )
                 .ok_or_else(|| self.size_error(path))?,
             ),
@@ -121,7 +131,10 @@ impl GreyFrame {
                 ImageBuffer::<Luma<u16>, _>::from_raw(
                     self.width as u32,
                     self.height as u32,
-                    self.pixels.iter().map(|&p| quantise(p) as u16).collect(),
+                    self.pixels
+                        .iter()
+                        .map(|&p| quantise(p, max) as u16)
+                        .collect(),
                 )
                 .ok_or_else(|| self.size_error(path))?,
             ),
