@@ -38,6 +38,7 @@ use needle_identify::{IdentifyOptions, PlaneModel, identify_material};
 use needle_synth::{GroundTruth, Scenario, Stage, generate, load_scenario};
 
 use crate::camera::{calibrate_from_bundle, track_trial};
+use crate::diagnose_command::sequential_linear_algebra;
 use crate::diagnosis_report::{add_sections, print_ladder};
 use crate::output::OutputFolder;
 use crate::plot;
@@ -620,6 +621,7 @@ fn diagnose_stage(folder: &OutputFolder, quick: bool, report: &mut Report) -> Re
         refinement: if quick { 1 } else { 2 },
         ..DiagnoseOptions::default()
     };
+    sequential_linear_algebra();
     let run = diagnose(&folder.file("bundle"), &ModelSpec::baseline(), &options)
         .map_err(|e| format!("diagnosis: {e}"))?;
     bar.finish_with_message(format!(

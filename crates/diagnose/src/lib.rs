@@ -59,11 +59,14 @@
 //!   (see `rank`).
 //! - **Refit**: the model with the effect added; likelihood ratio
 //!   $\Lambda = \chi^2_\text{now} - \chi^2_\text{with} \sim \chi^2_{k'}$,
-//!   AIC and BIC. Only candidates whose score p-value is below 0.05, and at
-//!   least the three best, are refitted (`Candidate::refitted`); a refit is
-//!   the costliest work of a step, and the score is the local form of the
-//!   likelihood ratio, so a candidate far from significant by score is
-//!   hardly significant by refit (the leaders are refitted in any case).
+//!   AIC and BIC. The three best candidates by score are refitted, and any
+//!   other whose score p-value is below 0.05 and whose score reaches a
+//!   tenth of the leaders' best likelihood ratio (`Candidate::refitted`):
+//!   a refit is the costliest work of a step, and the score is the local
+//!   form of the likelihood ratio, so a candidate far behind by score is
+//!   hardly the one that explains most by refit. Refits stop at a relative
+//!   tolerance of $10^{-5}$ (their likelihood ratio is then a lower bound);
+//!   the model that continues the ladder is refitted to $10^{-8}$.
 //!
 //! ## The verdict
 //!
