@@ -15,9 +15,11 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::ForceError;
 use crate::observe::{Frame, GridIndex, Insertion};
-use crate::regularise::{LambdaChoice, Regularisation, solve_regularised};
+use crate::place::{Needle, Placement};
+use crate::regularise::{LambdaChoice, Regularisation};
 use crate::respond::{MaterialField, ModelOptions, ShaftResponse};
-use crate::shaft::{ShaftBasis, ShaftPath, Smoothness};
+use crate::shaft::{ShaftBasis, ShaftPath, Smoothness, interpolate_displacement};
+use crate::tip::{TipPrior, TipZone, fit_with_tip_prior};
 
 /// Options of the regularised estimator.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -28,18 +30,26 @@ pub struct EstimatorOptions {
     pub regularisation: Regularisation,
     /// The smoothness prior.
     pub smoothness: Smoothness,
+    /// How the smoothness prior treats the tip.
+    pub tip: TipPrior,
     /// Largest spacing of the density stations along the shaft (m).
     pub shaft_spacing: f64,
 }
 
 impl EstimatorOptions {
     /// The 3-D slab estimator (equation (6)) with `regularisation`:
-    /// first-difference prior, stations at most 1.5 mm apart.
+    /// first-difference prior, stations at most 1.5 mm apart; the tip
+    /// prior chosen by the evidence ([`TipPrior::Evidence`]) with
+    /// [`Regularisation::MarginalLikelihood`], uniform with the other rules.
     pub fn slab(regularisation: Regularisation) -> Self {
         Self {
             model: ModelOptions::slab(),
             regularisation,
             smoothness: Smoothness::FirstDifference,
+            tip: match regularisation {
+                Regularisation::MarginalLikelihood { .. } => TipPrior::Evidence,
+                _ => TipPrior::Uniform,
+            },
             shaft_spacing: 1.5e-3,
         }
     }
@@ -58,11 +68,21 @@ impl EstimatorOptions {
 pub struct ShaftDistribution {
     /// Frame time (s).
     pub t: f64,
-    /// Entry point of the needle in the rest frame (m).
+    /// Material point of the entry: where the deformed front face crosses
+    /// the needle, in the rest frame (m, on $y = 0$).
     pub entry: [f64; 2],
-    /// Shaft length in the rest frame, entry to material tip (m).
+    /// How far that deformed entry lies inside the phantom along the
+    /// needle, $\delta$ (m).
+    pub entry_offset: f64,
+    /// Material point of the tip, in the rest frame (m).
+    pub material_tip: [f64; 2],
+    /// How far the last re-placement moved the entry or the material tip
+    /// (m): small against the station spacing when the placement has
+    /// settled.
+    pub placement_change: f64,
+    /// Inserted length along the needle, deformed entry to tip (m).
     pub length: f64,
-    /// Station arc lengths from the entry (m).
+    /// Station arc lengths along the needle from the deformed entry (m).
     pub stations: Vec<f64>,
     /// Axial force density at the stations (N/m).
     pub density: Vec<f64>,
@@ -80,6 +100,9 @@ pub struct ShaftDistribution {
     /// [`LambdaChoice::GcvAfterUnreachableDiscrepancy`] flag a model that
     /// does not fit the data to the stated noise.
     pub choice: LambdaChoice,
+    /// The tip zone of the smoothness prior the fit used
+    /// ([`TipZone::UNIFORM`] when the evidence chose none).
+    pub tip_zone: TipZone,
     /// Root-mean-square marker residual (m).
     pub residual_rms: f64,
     /// Marker coordinates used.
@@ -184,7 +207,7 @@ impl ShaftEstimator {
         frame: &Frame,
     ) -> Result<ShaftDistribution, ForceError> {
         let path = ShaftPath::from_frame(frame, &insertion.layout, &self.grid)?;
-        let (entry, axis) = (self.response.entry(), self.response.axis());
+        let axis = self.response.axis();
         let turn = path.axis[0] * axis[1] - path.axis[1] * axis[0];
         if (path.entry[0] - self.line_entry_x).abs() > 0.25 * self.grid.spacing()
             || turn.abs() > 1e-3
@@ -200,46 +223,50 @@ impl ShaftEstimator {
                 reason: "the tip is beyond the back face",
             });
         }
-        // The material tip: the marker-based guess of `ShaftPath`, then the
-        // model's own mid-plane displacement at the tip (top-face markers
-        // move less than the needle line under the slab's out-of-plane
-        // deformation), a few fixed-point steps.
-        let spatial_reach = (frame.tip[0] - entry[0]) * axis[0] + frame.tip[1] * axis[1];
-        let mut length = path.length;
-        let mut solved = self.solve_at(insertion, frame, length)?;
-        for _ in 0..TIP_ITERATIONS {
+        // The load acts on the material line whose deformed image is the
+        // needle (`crate::place`). First placed in the measured top-face
+        // displacement, then, a fixed number of rounds, in the model's own
+        // mid-plane displacement of the previous fit.
+        let needle = Needle::through(frame.tip, axis);
+        let extent = [insertion.phantom.width, insertion.phantom.depth];
+        let spacing = self.options.shaft_spacing;
+        let measured = |x: [f64; 2]| {
+            Ok(
+                interpolate_displacement(frame, &insertion.layout, &self.grid, x)
+                    .unwrap_or([0.0; 2]),
+            )
+        };
+        let mut placement = Placement::in_field(&needle, spacing, &measured, extent)?;
+        let mut solved = self.solve_at(insertion, frame, &placement)?;
+        let mut change = f64::NAN;
+        for _ in 0..PLACEMENT_ROUNDS {
             let q = DVector::from_column_slice(&solved.density);
-            let tip_shift = (self.response.line_displacement_row(&solved.basis, length)? * q)[0];
-            let next = spatial_reach - tip_shift;
-            if !(next > 0.0 && next <= insertion.phantom.depth) {
-                return Err(ForceError::BadShaft {
-                    length: next,
-                    reason: "the material tip left the phantom",
-                });
-            }
-            let converged = (next - length).abs() < 1e-6;
-            length = next;
-            solved = self.solve_at(insertion, frame, length)?;
-            if converged {
-                break;
-            }
+            let field = self.response.band_field(&(&solved.loads * q));
+            let next = Placement::in_field(&needle, spacing, &|x| field.at(x), extent)?;
+            change = next.moved_from(&placement);
+            placement = next;
+            solved = self.solve_at(insertion, frame, &placement)?;
         }
-        Ok(solved.into_distribution(frame))
+        Ok(solved.into_distribution(frame, &placement, change))
     }
 
-    /// The regularised fit for a shaft of material `length`.
+    /// The regularised fit for the load placed by `placement`.
     fn solve_at(
         &self,
         insertion: &Insertion,
         frame: &Frame,
-        length: f64,
+        placement: &Placement,
     ) -> Result<Solved, ForceError> {
-        let basis = ShaftBasis::new(length, self.options.shaft_spacing)?;
-        let g = self.response.response_matrix(&basis)?;
+        let basis = placement.basis.clone();
+        let loads = self
+            .response
+            .point_loads(&placement.load_points(), &basis)?;
+        let g = self.response.marker_response(&loads);
         // Whitening: per-row tracking sigma if the track has it, else the
         // stated noise, else 1 (GCV does not depend on the scale).
         let stated = match self.options.regularisation {
-            Regularisation::Discrepancy { sigma } => Some(sigma),
+            Regularisation::Discrepancy { sigma }
+            | Regularisation::MarginalLikelihood { sigma } => Some(sigma),
             _ => insertion.marker_sigma,
         };
         let mut rows = Vec::new();
@@ -265,13 +292,22 @@ impl ShaftEstimator {
         }
         let a = DMatrix::from_fn(rows.len(), basis.len(), |r, j| weights[r] * g[(rows[r], j)]);
         let b = DVector::from_fn(rows.len(), |r, _| weights[r] * data[r]);
-        let l = basis.difference_operator(self.options.smoothness);
         let regularisation = match self.options.regularisation {
             // The data are whitened already: unit noise.
             Regularisation::Discrepancy { .. } => Regularisation::Discrepancy { sigma: 1.0 },
+            Regularisation::MarginalLikelihood { .. } => {
+                Regularisation::MarginalLikelihood { sigma: 1.0 }
+            }
             other => other,
         };
-        let fit = solve_regularised(&a, &b, &l, regularisation)?;
+        let (fit, tip_zone) = fit_with_tip_prior(
+            &a,
+            &b,
+            &basis,
+            self.options.smoothness,
+            regularisation,
+            self.options.tip,
+        )?;
         // Covariance of q for whitened data: C A^T A C, scaled by the
         // residual variance when the noise is not known.
         let noise_known = stated.is_some() || frame.sigma.is_some();
@@ -294,7 +330,7 @@ impl ShaftEstimator {
             })
             .sum();
         Ok(Solved {
-            entry: self.response.entry(),
+            loads,
             density: fit.solution.iter().copied().collect(),
             density_sigma: (0..basis.len())
                 .map(|j| covariance[(j, j)].max(0.0).sqrt())
@@ -304,18 +340,24 @@ impl ShaftEstimator {
             integrated_sigma,
             lambda: fit.lambda,
             choice: fit.choice,
+            tip_zone,
             residual_rms: (residual / rows.len() as f64).sqrt(),
             data_count: rows.len(),
         })
     }
 }
 
-/// Fixed-point steps of the material tip.
-const TIP_ITERATIONS: usize = 4;
+/// Re-placements of the load in the model's own displacement, after the
+/// first fit placed in the measured one. A fixed count rather than a
+/// tolerance, so that every frame costs the same and the estimate is a
+/// smooth function of the data; the last move is reported
+/// ([`ShaftDistribution::placement_change`]).
+const PLACEMENT_ROUNDS: usize = 4;
 
 /// One regularised fit, before it is tied to its frame.
 struct Solved {
-    entry: [f64; 2],
+    /// The load matrix $P$ of the placement (loaded dofs x stations).
+    loads: DMatrix<f64>,
     basis: ShaftBasis,
     density: Vec<f64>,
     density_sigma: Vec<f64>,
@@ -323,16 +365,25 @@ struct Solved {
     integrated_sigma: f64,
     lambda: f64,
     choice: LambdaChoice,
+    tip_zone: TipZone,
     residual_rms: f64,
     data_count: usize,
 }
 
 impl Solved {
-    fn into_distribution(self, frame: &Frame) -> ShaftDistribution {
+    fn into_distribution(
+        self,
+        frame: &Frame,
+        placement: &Placement,
+        placement_change: f64,
+    ) -> ShaftDistribution {
         let axis = frame.axis();
         ShaftDistribution {
             t: frame.t,
-            entry: self.entry,
+            entry: placement.material[0],
+            entry_offset: placement.entry_offset,
+            material_tip: placement.tip(),
+            placement_change,
             length: self.basis.length(),
             stations: self.basis.stations,
             density: self.density,
@@ -342,6 +393,7 @@ impl Solved {
             base_force: frame.base_force[0] * axis[0] + frame.base_force[1] * axis[1],
             lambda: self.lambda,
             choice: self.choice,
+            tip_zone: self.tip_zone,
             residual_rms: self.residual_rms,
             data_count: self.data_count,
         }

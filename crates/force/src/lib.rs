@@ -26,7 +26,10 @@
 //!   operator along the shaft ([`Smoothness`]) and $\lambda$ from the
 //!   discrepancy principle when the noise is known or generalised
 //!   cross-validation otherwise ([`Regularisation`]; the solve is
-//!   `needle-lsq`'s Tikhonov solver). With [`Model::Slab`] ($G$ from a 3-D
+//!   `needle-lsq`'s Tikhonov solver). With a known noise,
+//!   [`Regularisation::MarginalLikelihood`] takes $\lambda$ and a penalty
+//!   relaxed near the tip ([`TipPrior`]) from the marginal likelihood of
+//!   the data, so that the tip peak is not smoothed away. With [`Model::Slab`] ($G$ from a 3-D
 //!   Tet10 slab, the load on the mid-plane, the markers on the top face)
 //!   this is the paper's equation (6),
 //!   $$\min_{F_s} (u - G(E,\nu)F_s)^T(u - G(E,\nu)F_s),$$
@@ -46,8 +49,11 @@
 //! for a unit force on every dof the needle line can load; a frame's $G$ is
 //! then that response times the consistent nodal loads of its hat functions
 //! (`needle-fem`'s line load), so a frame costs a few small dense solves.
-//! The material tip is found by a fixed point on the model's own mid-plane
-//! displacement at the tip (the tool reports the spatial tip).
+//! The load acts on the material points whose deformed images lie on the
+//! needle, from the deformed front face to the tip, with the density per
+//! length of needle: placed first in the measured displacement, then in
+//! the model's own mid-plane field of the previous fit, a fixed number of
+//! rounds (`place`).
 //!
 //! Bad input gives a [`ForceError`] naming what was wrong (too few markers,
 //! markers not on a grid, a trial that is not a needle insertion or has no
@@ -72,13 +78,16 @@
 
 mod error;
 mod estimate;
+mod evidence;
 mod nodal;
 mod observe;
+mod place;
 mod plot;
 mod regularise;
 mod respond;
 mod series;
 mod shaft;
+mod tip;
 mod velocity;
 
 pub use error::ForceError;
@@ -101,4 +110,5 @@ pub use series::{
     average_series, distribution_error, integrated_vs_base, point_of,
 };
 pub use shaft::{ShaftBasis, ShaftPath, Smoothness};
+pub use tip::{TIP_RELAXATIONS, TIP_ZONES, TipPrior, TipZone, fit_with_tip_prior};
 pub use velocity::{ShaftWindow, VelocityPoint, density_vs_velocity, window_density};

@@ -10,12 +10,16 @@
 //! their noise covariance, and a flagged fall-back to GCV when the
 //! discrepancy principle cannot be met (the model does not fit the data to
 //! the stated noise), instead of an error or a silently wrong $\lambda$.
+//! With a known noise, $\lambda$ (and the form of the prior, among
+//! candidates) can instead be the most probable one
+//! ([`Regularisation::MarginalLikelihood`], `crate::evidence`).
 
 use nalgebra::{DMatrix, DVector};
 use needle_lsq::{LsqError, tikhonov};
 use serde::{Deserialize, Serialize};
 
 use crate::error::ForceError;
+use crate::evidence::Evidence;
 
 /// How the regularisation weight is chosen.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -29,6 +33,14 @@ pub enum Regularisation {
     },
     /// Generalised cross-validation (the noise need not be known).
     Gcv,
+    /// Marginal likelihood for a known marker noise `sigma` (m): $\lambda$
+    /// (and the estimator's tip prior, [`crate::TipPrior::Evidence`]) of
+    /// largest evidence (`crate::evidence`); when the model cannot reach
+    /// the noise, the discrepancy principle at the misfit floor, flagged.
+    MarginalLikelihood {
+        /// Marker noise, one standard deviation per coordinate (m).
+        sigma: f64,
+    },
     /// A given weight $\lambda$ on the whitened problem.
     Fixed {
         /// The weight.
@@ -55,6 +67,8 @@ pub enum LambdaChoice {
     GcvAfterUnreachableDiscrepancy,
     /// Given by the caller.
     Fixed,
+    /// The marginal likelihood (the model reached the stated noise).
+    MarginalLikelihood,
 }
 
 /// Morozov's safety factor $\tau$: the residual is set to $\tau$ times the
@@ -108,6 +122,9 @@ pub fn solve_regularised(
             LambdaChoice::Fixed,
         ),
         Regularisation::Gcv => (tikhonov(a, b, l, gcv)?, LambdaChoice::Gcv),
+        Regularisation::MarginalLikelihood { sigma } => {
+            return Ok(solve_most_probable(a, b, std::slice::from_ref(l), sigma)?.0);
+        }
         Regularisation::Discrepancy { sigma } => {
             let noise_sigma = DISCREPANCY_SAFETY * sigma;
             match tikhonov(
@@ -159,4 +176,44 @@ pub fn solve_regularised(
         effective_parameters: fit.effective_parameters,
         inverse_normal,
     })
+}
+
+/// The most probable of several priors `candidates` (difference operators
+/// of one shape) and its $\lambda$, by the marginal likelihood of the data
+/// with known noise `sigma` (`crate::evidence`); returns the fit and the
+/// index of the prior. When the model does not reach the noise ($\hat s^2 >
+/// \tau^2$ at the optimum), the evidence's noise model does not hold: the
+/// fit is then the discrepancy principle's with the first candidate
+/// (flagged when at the misfit floor).
+pub(crate) fn solve_most_probable(
+    a: &DMatrix<f64>,
+    b: &DVector<f64>,
+    candidates: &[DMatrix<f64>],
+    sigma: f64,
+) -> Result<(RegularisedFit, usize), ForceError> {
+    crate::error::positive("marker sigma", sigma)?;
+    if candidates.is_empty() {
+        return Err(ForceError::Mismatch("no prior to choose from".into()));
+    }
+    let evidence = Evidence::new(&(a / sigma), &(b / sigma));
+    let best = candidates
+        .iter()
+        .enumerate()
+        .filter_map(|(k, l)| evidence.most_probable(l).map(|found| (k, found)))
+        .min_by(|x, y| x.1.score.total_cmp(&y.1.score));
+    match best {
+        Some((k, found)) if found.noise_variance <= DISCREPANCY_SAFETY * DISCREPANCY_SAFETY => {
+            // lambda of the whitened problem; the unwhitened one weighs the
+            // penalty against |Aq - b|^2 = sigma^2 |A_w q - b_w|^2.
+            let lambda = found.lambda * sigma * sigma;
+            let mut fit =
+                solve_regularised(a, b, &candidates[k], Regularisation::Fixed { lambda })?;
+            fit.choice = LambdaChoice::MarginalLikelihood;
+            Ok((fit, k))
+        }
+        _ => Ok((
+            solve_regularised(a, b, &candidates[0], Regularisation::Discrepancy { sigma })?,
+            0,
+        )),
+    }
 }

@@ -9,16 +9,19 @@
 //! mesh has a node on every marker and, for a straight insertion, a grid
 //! line along the needle.
 //!
-//! A line load only ever loads the nodes of the elements the needle line
-//! crosses, so the response to any density is a combination of the responses
-//! to unit forces on those dofs: $G = H K_{ff}^{-1} P$, where
-//! $P_{dj} = \int_0^L N_d(x(s))\,\varphi_j(s)\,\hat t\,ds$ is the consistent
-//! nodal load of hat function $\varphi_j$ (`needle-fem`'s line load), and
-//! $H K_{ff}^{-1}$ restricted to the loaded dofs ($H$ the marker
-//! interpolation operator) is computed once per needle line, with one
-//! factorisation and one solve per loaded dof.
+//! The needle holds tissue that is dragged sideways by a fraction of a
+//! millimetre, so the load may act anywhere in a band of one element around
+//! the needle line (on the slab's mid-plane). The response to any load is
+//! a combination of the responses to unit axial forces on the band's nodes:
+//! $G = H K_{ff}^{-1} P$, with $P$ the nodal loads of the placed density
+//! ([`ShaftResponse::point_loads`] for point forces at material points,
+//! [`ShaftResponse::consistent_loads`] for `needle-fem`'s line load on the
+//! straight line) and $H K_{ff}^{-1}$ restricted to the band's nodes ($H$
+//! the marker interpolation operator) computed once per needle line, one
+//! factorisation and one solve per loaded dof. The band's own displacements
+//! are kept too: they place the load of the next round.
 
-use nalgebra::DMatrix;
+use nalgebra::{DMatrix, DVector};
 use needle_data::Phantom;
 use needle_fem::load::add_line_load;
 use needle_fem::{
@@ -29,6 +32,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::ForceError;
 use crate::observe::{GridIndex, MarkerLayout};
+use crate::place::LoadPoint;
 use crate::shaft::ShaftBasis;
 
 /// Which elastic model maps shaft forces to marker displacements.
@@ -123,7 +127,8 @@ impl MaterialField {
     }
 }
 
-/// Marker responses to unit forces on the dofs one needle line can load.
+/// Marker responses to unit axial forces on the mid-plane nodes of a band
+/// around one needle line, and the band's own response to them.
 #[derive(Debug, Clone)]
 pub struct ShaftResponse {
     model: Model,
@@ -132,20 +137,34 @@ pub struct ShaftResponse {
     entry: [f64; 2],
     /// Unit axis of the line.
     axis: [f64; 2],
-    /// Global dofs a line load on the needle can reach, ascending.
+    /// Global dofs an axial load in the band can reach: the band nodes'
+    /// in-plane components along which the axis has a component.
     loaded: Vec<usize>,
+    /// Position of every global dof in `loaded` (`usize::MAX` if absent).
+    loaded_slot: Vec<usize>,
+    /// Position of every global dof among the band's in-plane dofs, the
+    /// rows of `band` (`usize::MAX` if absent).
+    band_slot: Vec<usize>,
     /// Row `2k + c` (marker `k` of the layout, component `c`), column `i`:
     /// displacement for a unit force on dof `loaded[i]`.
     markers: DMatrix<f64>,
-    /// Spacing of the samples along the needle line (m).
-    line_step: f64,
-    /// Row `k`: axial displacement of the needle line (mid-plane) at arc
-    /// length `k * line_step` for a unit force on each loaded dof.
-    line: DMatrix<f64>,
+    /// The band's in-plane displacements (rows in `band_slot` order) for a
+    /// unit force on each loaded dof.
+    band: DMatrix<f64>,
 }
 
-/// Largest spacing of the displacement samples along the needle line (m).
-const LINE_SAMPLE_SPACING: f64 = 0.25e-3;
+/// Half-width of the band around the needle line that loads may reach and
+/// displacements are read in, in elements: the tissue the needle holds is
+/// dragged sideways by a fraction of a millimetre.
+const BAND_ELEMENTS: f64 = 1.0;
+
+/// A needle line within this fraction of an element of a mesh line is put
+/// on it; otherwise a mesh line is inserted along the needle.
+const SNAP_FRACTION: f64 = 0.05;
+
+/// Shape-function weights below this are round-off (a node of a
+/// neighbouring element that the point only touches).
+const WEIGHT_ROUNDOFF: f64 = 1e-10;
 
 /// The model's mesh: the needle lies in the plane, or on the slab's
 /// mid-plane $z = 0$.
@@ -153,6 +172,49 @@ const LINE_SAMPLE_SPACING: f64 = 0.25e-3;
 enum ModelMesh {
     Plane(Mesh<2>),
     Slab(Mesh<3>),
+}
+
+impl ModelMesh {
+    /// Dofs per node.
+    fn dimension(&self) -> usize {
+        match self {
+            ModelMesh::Plane(_) => 2,
+            ModelMesh::Slab(_) => 3,
+        }
+    }
+
+    /// A locator over the mesh.
+    fn locator(&self) -> PlaneLocator<'_> {
+        match self {
+            ModelMesh::Plane(mesh) => PlaneLocator::Plane(Locator::new(mesh)),
+            ModelMesh::Slab(mesh) => PlaneLocator::Slab(Locator::new(mesh)),
+        }
+    }
+}
+
+/// Point location in the needle's plane (the slab's mid-plane).
+enum PlaneLocator<'a> {
+    Plane(Locator<'a, 2>),
+    Slab(Locator<'a, 3>),
+}
+
+impl PlaneLocator<'_> {
+    /// Shape-function weights `(node, N)` at a point of the needle's plane,
+    /// round-off weights dropped.
+    fn weights(&self, point: [f64; 2]) -> Result<Vec<(usize, f64)>, ForceError> {
+        let weights = match self {
+            PlaneLocator::Plane(l) => l.weights(point),
+            PlaneLocator::Slab(l) => l.weights([point[0], point[1], 0.0]),
+        };
+        let weights = weights.ok_or(ForceError::BadShaft {
+            length: point[1],
+            reason: "a loaded material point lies outside the phantom",
+        })?;
+        Ok(weights
+            .into_iter()
+            .filter(|w| w.1.abs() > WEIGHT_ROUNDOFF)
+            .collect())
+    }
 }
 
 /// How the model is built.
@@ -188,12 +250,12 @@ const LOAD_ROUNDOFF: f64 = 1e-12;
 
 impl ShaftResponse {
     /// Builds the model for a needle entering at `entry` (rest frame, on the
-    /// front face) along `axis`, and solves for the responses.
+    /// front face) along `axis`, and solves for the responses to unit forces
+    /// on the mid-plane nodes within one element of that line.
     ///
     /// For a straight insertion along +y the needle line becomes a mesh grid
-    /// line; when it lies within a quarter of an element of an existing line
-    /// it is snapped to it (the lateral error is then below a quarter
-    /// element).
+    /// line: an existing one when it lies within 5% of an element of it,
+    /// otherwise a line inserted along the needle.
     pub fn new(
         phantom: &Phantom,
         layout: &MarkerLayout,
@@ -240,30 +302,15 @@ impl ShaftResponse {
         if axis[0] == 0.0 {
             entry[0] = snap_or_insert(&mut plan.x_lines, entry[0]);
         }
-        // The longest shaft: to where the line leaves the phantom.
-        let reach = exit_length(phantom, entry, axis);
-        let end = [entry[0] + reach * axis[0], entry[1] + reach * axis[1]];
+        let halfwidth = BAND_ELEMENTS * grid.spacing() / options.refinement as f64;
         let materials = material.materials();
         let fixed: Vec<Face> = phantom.fixed.iter().map(|&f| fem_face(f)).collect();
-        let samples = (reach / LINE_SAMPLE_SPACING).ceil() as usize;
-        let line_step = reach / samples as f64;
-        let on_line: Vec<[f64; 2]> = (0..=samples)
-            .map(|k| {
-                [
-                    entry[0] + k as f64 * line_step * axis[0],
-                    k as f64 * line_step * axis[1],
-                ]
-            })
-            .collect();
-        let (mesh, loaded, markers) = match options.model {
-            Model::Plane(kind) => {
+        let (mesh, band_nodes) = match options.model {
+            Model::Plane(_) => {
                 let mut mesh = plan.build(ElementKind::Tri6)?;
                 mesh.assign_regions(|c| material.region_of(c[1]));
-                let formulation = kind.formulation(phantom.thickness);
-                let points: Vec<[f64; 2]> = layout.rest.iter().chain(&on_line).copied().collect();
-                let (loaded, markers) =
-                    unit_responses(&mesh, formulation, &materials, &fixed, &points, entry, end)?;
-                (ModelMesh::Plane(mesh), loaded, markers)
+                let nodes = band_nodes(&mesh, entry, axis, halfwidth, |_| true);
+                (ModelMesh::Plane(mesh), nodes)
             }
             Model::Slab { layers } => {
                 if layers < 2 || layers % 2 != 0 {
@@ -273,45 +320,78 @@ impl ShaftResponse {
                         reason: "must be even and at least 2, so that the needle's mid-plane is a node plane",
                     });
                 }
-                let top = 0.5 * phantom.thickness;
                 let mut mesh =
                     SlabMesh::new(plan, phantom.thickness, layers)?.build(ElementKind::Tet10)?;
                 mesh.assign_regions(|c| material.region_of(c[1]));
-                let points: Vec<[f64; 3]> = layout
-                    .rest
-                    .iter()
-                    .map(|p| [p[0], p[1], top])
-                    .chain(on_line.iter().map(|p| [p[0], p[1], 0.0]))
-                    .collect();
-                let (start, end) = ([entry[0], entry[1], 0.0], [end[0], end[1], 0.0]);
-                let (loaded, markers) = unit_responses(
-                    &mesh,
+                let tolerance = 1e-9 * phantom.thickness;
+                let nodes = band_nodes(&mesh, entry, axis, halfwidth, |x| x[2].abs() <= tolerance);
+                (ModelMesh::Slab(mesh), nodes)
+            }
+        };
+        let dimension = mesh.dimension();
+        let in_plane: Vec<usize> = band_nodes
+            .iter()
+            .flat_map(|&n| [n * dimension, n * dimension + 1])
+            .collect();
+        let loaded: Vec<usize> = band_nodes
+            .iter()
+            .flat_map(|&n| {
+                (0..2)
+                    .filter(|&c| axis[c] != 0.0)
+                    .map(move |c| n * dimension + c)
+            })
+            .collect();
+        let (markers, band) = match &mesh {
+            ModelMesh::Plane(m) => {
+                let Model::Plane(kind) = options.model else {
+                    unreachable!("a plane mesh comes from a plane model")
+                };
+                let formulation = kind.formulation(phantom.thickness);
+                unit_responses(
+                    m,
+                    formulation,
+                    &materials,
+                    &fixed,
+                    &layout.rest,
+                    &loaded,
+                    &in_plane,
+                )?
+            }
+            ModelMesh::Slab(m) => {
+                let top = 0.5 * phantom.thickness;
+                let points: Vec<[f64; 3]> = layout.rest.iter().map(|p| [p[0], p[1], top]).collect();
+                unit_responses(
+                    m,
                     Formulation::Solid,
                     &materials,
                     &fixed,
                     &points,
-                    start,
-                    end,
-                )?;
-                (ModelMesh::Slab(mesh), loaded, markers)
+                    &loaded,
+                    &in_plane,
+                )?
             }
         };
-        // Split the needle-line rows off and project them on the axis.
-        let marker_rows = 2 * layout.len();
-        let line = DMatrix::from_fn(samples + 1, loaded.len(), |k, i| {
-            axis[0] * markers[(marker_rows + 2 * k, i)]
-                + axis[1] * markers[(marker_rows + 2 * k + 1, i)]
-        });
-        let markers = markers.rows(0, marker_rows).into_owned();
+        let dofs = match &mesh {
+            ModelMesh::Plane(m) => m.dof_count(),
+            ModelMesh::Slab(m) => m.dof_count(),
+        };
+        let slots = |list: &[usize]| {
+            let mut slot = vec![usize::MAX; dofs];
+            for (i, &d) in list.iter().enumerate() {
+                slot[d] = i;
+            }
+            slot
+        };
         Ok(Self {
             model: options.model,
+            loaded_slot: slots(&loaded),
+            band_slot: slots(&in_plane),
             mesh,
             entry,
             axis,
             loaded,
             markers,
-            line_step,
-            line,
+            band,
         })
     }
 
@@ -335,9 +415,10 @@ impl ShaftResponse {
         self.markers.nrows()
     }
 
-    /// The consistent-load matrix $P$ (loaded dofs x basis functions): the
-    /// nodal loads of each hat function applied as an axial line load from
-    /// the entry, computed by `needle-fem`.
+    /// The consistent-load matrix $P$ (loaded dofs x basis functions) of
+    /// the straight needle line from the model's entry: the nodal loads of
+    /// each hat function applied as an axial line load, computed by
+    /// `needle-fem`.
     pub fn consistent_loads(&self, basis: &ShaftBasis) -> Result<DMatrix<f64>, ForceError> {
         let (entry, axis) = (self.entry, self.axis);
         let length = basis.length();
@@ -376,7 +457,7 @@ impl ShaftResponse {
                 p[(i, j)] = column[dof];
                 kept += column[dof].abs();
             }
-            if total - kept > 1e-9 * total {
+            if total - kept > LOAD_ROUNDOFF * total {
                 return Err(ForceError::BadShaft {
                     length,
                     reason: "the shaft leaves the needle line the model was prepared for",
@@ -386,29 +467,64 @@ impl ShaftResponse {
         Ok(p)
     }
 
-    /// $G = H K_{ff}^{-1} P$: marker displacements (rows `2k + c`) per unit
-    /// station value of the density.
-    pub fn response_matrix(&self, basis: &ShaftBasis) -> Result<DMatrix<f64>, ForceError> {
-        Ok(&self.markers * self.consistent_loads(basis)?)
-    }
-
-    /// The axial displacement of the needle line (mid-plane) at arc length
-    /// `s`, per unit station value: a row to multiply with the station
-    /// values (linear between samples 0.25 mm apart).
-    pub fn line_displacement_row(
+    /// The load matrix $P$ (loaded dofs x basis functions) of axial point
+    /// forces: point `k` carries $w_k \sum_j \varphi_j(s_k)\,q_j$ along the
+    /// axis at its material position.
+    pub(crate) fn point_loads(
         &self,
+        points: &[LoadPoint],
         basis: &ShaftBasis,
-        s: f64,
-    ) -> Result<nalgebra::RowDVector<f64>, ForceError> {
-        let last = self.line.nrows() - 1;
-        let position = (s / self.line_step).clamp(0.0, last as f64);
-        let k = (position.floor() as usize).min(last.saturating_sub(1));
-        let w = position - k as f64;
-        let row = self.line.row(k) * (1.0 - w) + self.line.row((k + 1).min(last)) * w;
-        Ok(row * self.consistent_loads(basis)?)
+    ) -> Result<DMatrix<f64>, ForceError> {
+        let locator = self.mesh.locator();
+        let dimension = self.mesh.dimension();
+        let mut p = DMatrix::zeros(self.loaded.len(), basis.len());
+        for point in points {
+            let hats: Vec<(usize, f64)> = (0..basis.len())
+                .map(|j| (j, basis.hat(j, point.s) * point.weight))
+                .filter(|h| h.1 != 0.0)
+                .collect();
+            for (node, w) in locator.weights(point.at)? {
+                for c in (0..2).filter(|&c| self.axis[c] != 0.0) {
+                    let slot = self.loaded_slot[node * dimension + c];
+                    if slot == usize::MAX {
+                        return Err(ForceError::BadShaft {
+                            length: basis.length(),
+                            reason: "the loaded material line left the band around the needle line the model was prepared for",
+                        });
+                    }
+                    for &(j, h) in &hats {
+                        p[(slot, j)] += w * self.axis[c] * h;
+                    }
+                }
+            }
+        }
+        Ok(p)
     }
 
-    /// Marker displacements (rows `2k + c`) for station values `values`.
+    /// The marker displacements (rows `2k + c`) of the loads `p` (columns
+    /// of a load matrix).
+    pub(crate) fn marker_response(&self, p: &DMatrix<f64>) -> DMatrix<f64> {
+        &self.markers * p
+    }
+
+    /// The in-plane displacement field of the band for the nodal loads
+    /// `load` (one value per loaded dof).
+    pub(crate) fn band_field(&self, load: &DVector<f64>) -> BandField<'_> {
+        BandField {
+            values: &self.band * load,
+            locator: self.mesh.locator(),
+            response: self,
+        }
+    }
+
+    /// $G = H K_{ff}^{-1} P$ of the straight needle line from the model's
+    /// entry: marker displacements (rows `2k + c`) per unit station value.
+    pub fn response_matrix(&self, basis: &ShaftBasis) -> Result<DMatrix<f64>, ForceError> {
+        Ok(self.marker_response(&self.consistent_loads(basis)?))
+    }
+
+    /// Marker displacements (rows `2k + c`) for station values `values` on
+    /// the straight needle line from the model's entry.
     pub fn predict(&self, basis: &ShaftBasis, values: &[f64]) -> Result<Vec<f64>, ForceError> {
         if values.len() != basis.len() {
             return Err(ForceError::Mismatch(format!(
@@ -417,8 +533,37 @@ impl ShaftResponse {
                 basis.len()
             )));
         }
-        let q = nalgebra::DVector::from_column_slice(values);
+        let q = DVector::from_column_slice(values);
         Ok((self.response_matrix(basis)? * q).iter().copied().collect())
+    }
+}
+
+/// The model's displacement in the band around the needle line for one
+/// load: what places the load of the next round.
+pub(crate) struct BandField<'a> {
+    values: DVector<f64>,
+    locator: PlaneLocator<'a>,
+    response: &'a ShaftResponse,
+}
+
+impl BandField<'_> {
+    /// The in-plane displacement at the material point `point`.
+    pub fn at(&self, point: [f64; 2]) -> Result<[f64; 2], ForceError> {
+        let dimension = self.response.mesh.dimension();
+        let mut u = [0.0; 2];
+        for (node, w) in self.locator.weights(point)? {
+            for (c, value) in u.iter_mut().enumerate() {
+                let slot = self.response.band_slot[node * dimension + c];
+                if slot == usize::MAX {
+                    return Err(ForceError::BadShaft {
+                        length: point[1],
+                        reason: "the loaded material line left the band around the needle line the model was prepared for",
+                    });
+                }
+                *value += w * self.values[slot];
+            }
+        }
+        Ok(u)
     }
 }
 
@@ -439,50 +584,54 @@ fn line_load<const D: usize>(
     Ok(loads)
 }
 
-/// Length from `entry` along `axis` to where the line leaves the phantom.
-fn exit_length(phantom: &Phantom, entry: [f64; 2], axis: [f64; 2]) -> f64 {
-    let mut reach = (phantom.depth - entry[1]) / axis[1];
-    if axis[0] > 0.0 {
-        reach = reach.min((phantom.width - entry[0]) / axis[0]);
-    } else if axis[0] < 0.0 {
-        reach = reach.min(-entry[0] / axis[0]);
+/// The nodes (passing `keep`, e.g. the slab's mid-plane) of the elements
+/// that reach within `halfwidth` of the line through `entry` along `axis`,
+/// ascending.
+fn band_nodes<const D: usize>(
+    mesh: &Mesh<D>,
+    entry: [f64; 2],
+    axis: [f64; 2],
+    halfwidth: f64,
+    keep: impl Fn([f64; D]) -> bool,
+) -> Vec<usize> {
+    let normal = [axis[1], -axis[0]];
+    let lateral = |x: [f64; D]| (x[0] - entry[0]) * normal[0] + (x[1] - entry[1]) * normal[1];
+    let corners = mesh.kind().corner_count();
+    let mut nodes = Vec::new();
+    for e in 0..mesh.element_count() {
+        let element = mesh.element(e);
+        let (lo, hi) = element[..corners]
+            .iter()
+            .map(|&n| lateral(mesh.node(n)))
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+                (lo.min(v), hi.max(v))
+            });
+        if lo <= halfwidth && hi >= -halfwidth {
+            nodes.extend(element.iter().copied().filter(|&n| keep(mesh.node(n))));
+        }
     }
-    reach
+    nodes.sort_unstable();
+    nodes.dedup();
+    nodes
 }
 
-/// Factorises the clamped model, finds the dofs a line load from `start` to
-/// `end` reaches, and returns them with the marker displacements (markers
-/// interpolated at `points`) for a unit force on each.
+/// Factorises the clamped model and returns, for a unit force on each dof
+/// of `loaded`, the displacements at the markers (interpolated at
+/// `points`, components x and y) and at the dofs `sampled`.
 fn unit_responses<const D: usize>(
     mesh: &Mesh<D>,
     formulation: Formulation,
     materials: &Materials,
     fixed: &[Face],
     points: &[[f64; D]],
-    start: [f64; D],
-    end: [f64; D],
-) -> Result<(Vec<usize>, DMatrix<f64>), ForceError> {
+    loaded: &[usize],
+    sampled: &[usize],
+) -> Result<(DMatrix<f64>, DMatrix<f64>), ForceError> {
     let locator = Locator::new(mesh);
-    let mut reach = vec![0.0; mesh.dof_count()];
-    let constant = |_: f64| -> [f64; D] { [1.0; D] };
-    add_line_load(
-        &locator,
-        &mut reach,
-        start,
-        end,
-        &LineDensity::Function {
-            density: &constant,
-            breakpoints: vec![],
-        },
-    )?;
-    let largest = reach.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
     let mut dirichlet = Dirichlet::new();
     for &face in fixed {
         dirichlet.fix_nodes(mesh, &mesh.nodes_on_face(face))?;
     }
-    let loaded: Vec<usize> = (0..reach.len())
-        .filter(|&d| reach[d].abs() > LOAD_ROUNDOFF * largest && !dirichlet.contains(d))
-        .collect();
     let interpolation = locator.interpolation_matrix(points, &[0, 1])?;
     let mut problem = LinearProblem::new(
         Assembler::new(mesh.clone(), formulation)?,
@@ -490,6 +639,7 @@ fn unit_responses<const D: usize>(
         dirichlet,
     )?;
     problem.factorize(materials)?;
+    // A load on a clamped dof goes to the support: its column stays zero.
     let mut columns = faer::Mat::<f64>::zeros(problem.free_dofs().len(), loaded.len());
     for (i, &dof) in loaded.iter().enumerate() {
         if let Some(k) = problem.reduced_index(dof) {
@@ -513,11 +663,17 @@ fn unit_responses<const D: usize>(
             }
         }
     }
-    Ok((loaded, markers))
+    let band = DMatrix::from_fn(sampled.len(), loaded.len(), |r, i| {
+        problem
+            .reduced_index(sampled[r])
+            .map_or(0.0, |k| columns[(k, i)])
+    });
+    Ok((markers, band))
 }
 
 /// Puts the needle on a grid line: the nearest existing line when it lies
-/// within a quarter of the neighbouring elements, otherwise a new line.
+/// within [`SNAP_FRACTION`] of the neighbouring elements, otherwise a new
+/// line.
 fn snap_or_insert(lines: &mut Vec<f64>, x: f64) -> f64 {
     let k = lines.partition_point(|&l| l < x);
     let nearest = [k.wrapping_sub(1), k]
@@ -530,7 +686,7 @@ fn snap_or_insert(lines: &mut Vec<f64>, x: f64) -> f64 {
         } else {
             lines[i] - lines[i - 1]
         };
-        if (lines[i] - x).abs() <= 0.25 * h {
+        if (lines[i] - x).abs() <= SNAP_FRACTION * h {
             return lines[i];
         }
     }

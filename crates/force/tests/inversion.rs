@@ -99,31 +99,39 @@ fn the_slab_distribution_error_at_4_um_of_noise() {
     let truth = truth();
     let clean = truth.insertion(Q0, &DEPTHS, 1e-3);
     let noisy = with_noise(&clean, NOISE, 5);
+    // The marginal likelihood chooses the weight and the tip prior.
+    // The marginal likelihood chooses the weight and the tip prior; the
+    // model does not reach the noise on this small, strongly strained
+    // phantom, so every frame falls back to the flagged discrepancy
+    // principle at the misfit floor (the uniform prior).
     let estimator = ShaftEstimator::new(
         &noisy,
         &material,
-        EstimatorOptions::slab(Regularisation::Discrepancy { sigma: NOISE }),
+        EstimatorOptions::slab(Regularisation::MarginalLikelihood { sigma: NOISE }),
     )
     .unwrap();
     let mut worst: f64 = 0.0;
     let mut distributions = Vec::new();
     for (frame, &depth) in noisy.frames.iter().zip(&DEPTHS) {
         let d = estimator.estimate(&noisy, frame).unwrap();
-        let e = distribution_error(&d, truth_density(Q0, depth));
+        let e = distribution_error(&d, truth_density(Q0, d.length));
         println!(
-            "depth {:.1} mm: density L2 error {:.3}, integral error {:+.4}, {:?}",
+            "depth {:.1} mm: density L2 error {:.3}, integral error {:+.4}, {:?}, tip zone {:?}",
             depth * 1e3,
             e.density,
             e.integral,
-            d.choice
+            d.choice,
+            d.tip_zone
         );
         if depth > 10e-3 {
             worst = worst.max(e.density);
+            assert!(d.is_flagged());
         }
         distributions.push(d);
     }
     println!("worst density error past 10 mm: {worst:.3}");
-    // Measured 0.24 (seed 5): the 10% target of the issue is NOT reached;
+    // Measured 0.165 (seed 5; 0.24 before the load placement): the 10%
+    // target of the issue is NOT reached;
     // the bound guards against the oscillating solutions of an
     // under-regularised fit (errors of 2 to 20 before the misfit-floor rule).
     assert!(worst < 0.3, "density L2 error {worst}");

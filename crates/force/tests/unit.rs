@@ -11,8 +11,9 @@ use needle_data::{
 use needle_force::{
     DISCREPANCY_SAFETY, ForceError, Frame, Insertion, LambdaChoice, MarkerLayout, MarkerMeshModel,
     Model, ModelOptions, PlaneKind, Regularisation, ShaftBasis, ShaftCurve, ShaftResponse,
-    ShaftWindow, Smoothness, density_vs_velocity, observe_insertion, plot_density_vs_velocity,
-    plot_integrated_vs_base, plot_nodal_forces, plot_shaft_distributions, solve_regularised,
+    ShaftWindow, Smoothness, TipPrior, TipZone, density_vs_velocity, fit_with_tip_prior,
+    observe_insertion, plot_density_vs_velocity, plot_integrated_vs_base, plot_nodal_forces,
+    plot_shaft_distributions, solve_regularised,
 };
 use support::{layout, paper_material, phantom};
 
@@ -68,6 +69,38 @@ mod shaft {
         // The interpolant reproduces the linear function between stations.
         assert!((basis.evaluate(&linear, 0.0211) - (3.0 + 50.0 * 0.0211)).abs() < 1e-12);
         assert_eq!(basis.evaluate(&linear, 0.04), 0.0);
+    }
+
+    #[test]
+    fn the_tip_zone_relaxes_only_the_rows_centred_near_the_tip() {
+        let basis = ShaftBasis::new(0.03, 1.5e-3).unwrap();
+        let zone = TipZone {
+            zone: 4e-3,
+            relaxation: 0.01,
+        };
+        for smoothness in [Smoothness::FirstDifference, Smoothness::SecondDifference] {
+            let uniform = basis.difference_operator(smoothness);
+            let relaxed = zone.operator(&basis, smoothness);
+            let scaled: Vec<usize> = (0..uniform.nrows())
+                .filter(|&r| (relaxed.row(r) - uniform.row(r) * 0.1).amax() < 1e-9)
+                .collect();
+            let kept = (0..uniform.nrows())
+                .filter(|&r| relaxed.row(r) == uniform.row(r))
+                .count();
+            // Element centres 0.75, 2.25, 3.75 mm from the tip (first
+            // difference); stations 1.5 and 3 mm from it (second).
+            let expected = match smoothness {
+                Smoothness::FirstDifference => 3,
+                Smoothness::SecondDifference => 2,
+            };
+            assert_eq!(scaled.len(), expected, "{smoothness:?}");
+            assert!(scaled.iter().all(|&r| r + expected >= uniform.nrows()));
+            assert_eq!(kept + expected, uniform.nrows());
+        }
+        assert_eq!(
+            TipZone::UNIFORM.operator(&basis, Smoothness::FirstDifference),
+            basis.difference_operator(Smoothness::FirstDifference)
+        );
     }
 
     #[test]
@@ -141,6 +174,72 @@ mod line_load {
                 "{options:?}: max relative density error {error}"
             );
         }
+    }
+
+    /// The tip prior on data the slab model explains to the noise: a
+    /// density with a tip peak, the markers' response plus seeded noise.
+    /// The marginal likelihood relaxes the tip and recovers the density
+    /// better than the discrepancy principle with the uniform prior.
+    #[test]
+    fn the_evidence_lets_a_tip_peak_through_that_the_uniform_prior_flattens() {
+        let p = phantom(0.03, 0.03, 0.003);
+        let markers = layout(&p, 11);
+        let grid = markers.grid().unwrap();
+        let response = ShaftResponse::new(
+            &p,
+            &markers,
+            &grid,
+            &paper_material(),
+            ModelOptions::slab(),
+            [0.015, 0.0],
+            [0.0, 1.0],
+        )
+        .unwrap();
+        let basis = ShaftBasis::new(0.021, 1.5e-3).unwrap();
+        let length = basis.length();
+        // 20 N/m and a peak of 20 N/m more, 3 mm half-width, 2 mm behind
+        // the tip.
+        let truth: Vec<f64> = basis
+            .stations
+            .iter()
+            .map(|s| 20.0 * (1.0 + (1.0 - (s - (length - 2e-3)).abs() / 3e-3).max(0.0)))
+            .collect();
+        let sigma = 1e-6;
+        let g = response.response_matrix(&basis).unwrap();
+        let exact = DVector::from_vec(response.predict(&basis, &truth).unwrap());
+        let u = {
+            use rand::SeedableRng;
+            use rand_distr::Distribution;
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+            let normal = rand_distr::Normal::new(0.0, sigma).unwrap();
+            exact.map(|x| x + normal.sample(&mut rng))
+        };
+        let truth = DVector::from_vec(truth);
+        let error = |regularisation, prior| {
+            let (fit, zone) = fit_with_tip_prior(
+                &g,
+                &u,
+                &basis,
+                Smoothness::FirstDifference,
+                regularisation,
+                prior,
+            )
+            .unwrap();
+            let e = (&fit.solution - &truth).norm() / truth.norm();
+            println!(
+                "{regularisation:?}, {prior:?}: {:?}, zone {zone:?}, error {e:.3}",
+                fit.choice
+            );
+            (e, fit.choice, zone)
+        };
+        let (uniform, ..) = error(Regularisation::Discrepancy { sigma }, TipPrior::Uniform);
+        let (evidence, choice, zone) = error(
+            Regularisation::MarginalLikelihood { sigma },
+            TipPrior::Evidence,
+        );
+        assert_eq!(choice, LambdaChoice::MarginalLikelihood);
+        assert!(zone.relaxation < 1.0, "{zone:?}");
+        assert!(evidence < 0.75 * uniform, "{evidence} against {uniform}");
     }
 
     /// A stiffer back layer (Fig. 15's layered phantom) makes the same
@@ -365,6 +464,119 @@ mod regularised {
         // The residual stays far above the stated noise, and the solution is
         // still a sensible smoothing of the truth (not an unregularised one).
         assert!(fit.residual_squared > DISCREPANCY_SAFETY.powi(2) * m as f64 * 1e-8);
+        let error = (fit.solution - &truth).norm() / truth.norm();
+        assert!(error < 0.1, "relative error {error}");
+    }
+
+    /// $-2\log p(b \mid \lambda)$ of the Gaussian model $b = Aq + e$, $e
+    /// \sim N(0, I)$, $q \sim N(0, (\lambda L^TL)^{-1})$ for a square
+    /// invertible $L$, computed directly from the data's covariance
+    /// $S = I + A(\lambda L^TL)^{-1}A^T$ (up to $m\log 2\pi$).
+    fn direct_neg2_log_evidence(
+        a: &DMatrix<f64>,
+        b: &DVector<f64>,
+        l: &DMatrix<f64>,
+        lambda: f64,
+    ) -> f64 {
+        let prior_covariance = (l.transpose() * l * lambda).try_inverse().unwrap();
+        let s = DMatrix::identity(a.nrows(), a.nrows()) + a * prior_covariance * a.transpose();
+        let factor = s.cholesky().unwrap();
+        let log_det = 2.0 * factor.l().diagonal().map(f64::ln).sum();
+        b.dot(&factor.solve(b)) + log_det
+    }
+
+    #[test]
+    fn the_most_probable_lambda_maximises_the_gaussian_marginal_likelihood() {
+        let (m, n) = (60, 30);
+        let a = blur(m, n) / 1e-3;
+        let truth = DVector::from_fn(n, |j, _| 1.0 + (j as f64 / 5.0).sin());
+        let b = noisy_data(&a, &truth, 1.0);
+        // A proper prior: the first difference and an anchor on q_0.
+        let mut l = DMatrix::zeros(n, n);
+        l[(0, 0)] = 1.0;
+        l.view_mut((1, 0), (n - 1, n))
+            .copy_from(&first_difference(n));
+        let fit = solve_regularised(
+            &a,
+            &b,
+            &l,
+            Regularisation::MarginalLikelihood { sigma: 1.0 },
+        )
+        .unwrap();
+        assert_eq!(fit.choice, LambdaChoice::MarginalLikelihood);
+        // Golden-section search of the direct formula over log lambda.
+        let f = |x: f64| direct_neg2_log_evidence(&a, &b, &l, 10f64.powf(x));
+        let (mut lo, mut hi) = (-8.0, 8.0);
+        let ratio = 0.5 * (5f64.sqrt() - 1.0);
+        for _ in 0..80 {
+            let (x1, x2) = (hi - ratio * (hi - lo), lo + ratio * (hi - lo));
+            if f(x1) < f(x2) { hi = x2 } else { lo = x1 }
+        }
+        let direct = 10f64.powf(0.5 * (lo + hi));
+        assert!(
+            (fit.lambda / direct - 1.0).abs() < 0.02,
+            "most probable lambda {} against the direct maximum {direct}",
+            fit.lambda
+        );
+    }
+
+    #[test]
+    fn the_marginal_likelihood_recovers_the_weight_of_the_prior_that_drew_the_data() {
+        use rand::SeedableRng;
+        use rand_distr::Distribution;
+        // Denoising a random walk: steps of standard deviation 0.3 are the
+        // prior exp(-lambda |Lq|^2 / 2) with lambda = 1 / 0.3^2 on unit
+        // noise.
+        let n = 400;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let step = rand_distr::Normal::new(0.0, 0.3).unwrap();
+        let mut q = DVector::zeros(n);
+        for j in 1..n {
+            q[j] = q[j - 1] + step.sample(&mut rng);
+        }
+        let sigma = 0.5;
+        let a = DMatrix::identity(n, n);
+        let b = noisy_data(&a, &q, sigma);
+        let fit = solve_regularised(
+            &a,
+            &b,
+            &first_difference(n),
+            Regularisation::MarginalLikelihood { sigma },
+        )
+        .unwrap();
+        // lambda of the unwhitened problem: sigma^2 / 0.3^2.
+        let expected = sigma * sigma / 0.09;
+        println!(
+            "most probable lambda {} (drawn with {expected})",
+            fit.lambda
+        );
+        assert!(
+            (fit.lambda / expected).ln().abs() < 0.3f64.ln_1p(),
+            "lambda {} against {expected}",
+            fit.lambda
+        );
+    }
+
+    #[test]
+    fn a_model_short_of_the_noise_falls_back_to_the_flagged_discrepancy() {
+        let (m, n) = (120, 40);
+        let a = blur(m, n);
+        let truth = DVector::from_fn(n, |j, _| 1.0 + (j as f64 / 6.0).sin());
+        // The same model error as above: no solution reaches 1e-4.
+        let exact = &a * &truth;
+        let a = DMatrix::from_fn(2 * m, n, |i, j| a[(i % m, j)]);
+        let b = DVector::from_fn(2 * m, |i, _| {
+            exact[i % m] + if i < m { 0.005 } else { -0.005 }
+        });
+        let l = first_difference(n);
+        let fit = solve_regularised(
+            &a,
+            &b,
+            &l,
+            Regularisation::MarginalLikelihood { sigma: 1e-4 },
+        )
+        .unwrap();
+        assert_eq!(fit.choice, LambdaChoice::DiscrepancyAtModelFloor);
         let error = (fit.solution - &truth).norm() / truth.norm();
         assert!(error < 0.1, "relative error {error}");
     }
@@ -641,6 +853,9 @@ mod figures {
         ShaftDistribution {
             t: 0.0,
             entry: [0.0, 0.0],
+            entry_offset: 0.0,
+            material_tip: [0.0, length],
+            placement_change: 0.0,
             length,
             stations: basis.stations.clone(),
             density: vec![q; basis.len()],
@@ -650,6 +865,7 @@ mod figures {
             base_force: q * length,
             lambda: 1.0,
             choice: LambdaChoice::Gcv,
+            tip_zone: TipZone::UNIFORM,
             residual_rms: 0.0,
             data_count: 100,
         }

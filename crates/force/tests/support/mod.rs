@@ -1,6 +1,7 @@
 //! Synthetic insertions for the tests: a finer 3-D slab "truth" (Tet10,
 //! more elements per marker spacing and more layers than the model) loaded on
-//! its mid-plane by a known axial shaft density (uniform with a tip peak
+//! its mid-plane, at the material points the needle holds, by a known axial
+//! shaft density per length of needle (uniform with a tip peak
 //! 100% higher, as in the paper's Fig. 10), markers read on its top face,
 //! seeded Gaussian marker noise.
 
@@ -9,10 +10,9 @@
 use needle_data::{Face, Phantom};
 use needle_fem::Face as Face3;
 use needle_fem::assemble::multiply;
-use needle_fem::load::add_line_load;
 use needle_fem::material::Material;
 use needle_fem::{
-    Assembler, Dirichlet, ElementKind, Formulation, LineDensity, LinearProblem, Locator, Materials,
+    Assembler, Dirichlet, ElementKind, Formulation, LinearProblem, Locator, Materials,
     RectangleMesh, SlabMesh,
 };
 use needle_force::{Frame, Insertion, MarkerLayout, MaterialField};
@@ -63,6 +63,12 @@ pub fn truth_density(q0: f64, length: f64) -> impl Fn(f64) -> f64 {
         q0 * (1.0 + (1.0 - (s - centre).abs() / 3e-3).max(0.0))
     }
 }
+
+/// Solve-and-re-place rounds of a truth frame.
+const PLACEMENT_ROUNDS: usize = 8;
+
+/// Substitutions $X \leftarrow p - u(X)$ per material point and round.
+const SUBSTITUTIONS: usize = 6;
 
 /// The truth world: a fine Tet10 slab of the phantom, solved by
 /// `needle-fem` directly (not through this crate's response code).
@@ -123,37 +129,66 @@ impl Truth {
         }
     }
 
-    /// One noise-free frame with the material tip at `length`: the truth
-    /// density as an axial line load on the mid-plane, the markers read on
-    /// the top face, the spatial tip moved by the mid-plane displacement
-    /// there, the base force the load's integral.
-    pub fn frame(&self, q0: f64, length: f64, t: f64) -> Frame {
+    /// One noise-free frame with the spatial tip at depth `tip`: the truth
+    /// density (per length of needle, peak behind the tip) as axial point
+    /// forces at the material points whose deformed images lie on the
+    /// needle, from the deformed entry to the tip (needle-synth's physics),
+    /// placed by [`PLACEMENT_ROUNDS`] rounds of solve and re-place; the
+    /// markers read on the top face; the base force the load's integral.
+    pub fn frame(&self, q0: f64, tip: f64, t: f64) -> Frame {
         let mesh = self.problem.mesh();
         let locator = Locator::new(mesh);
-        let density = truth_density(q0, length);
-        let axial = move |s: f64| [0.0, density(s), 0.0];
-        let mut loads = vec![0.0; mesh.dof_count()];
-        let total = add_line_load(
-            &locator,
-            &mut loads,
-            [self.needle_x, 0.0, 0.0],
-            [self.needle_x, length, 0.0],
-            &LineDensity::Function {
-                density: &axial,
-                breakpoints: vec![length - 5e-3, length - 2e-3],
-            },
-        )
-        .unwrap();
-        let u = self.problem.solve(&loads).unwrap().displacement;
+        let x0 = self.needle_x;
+        let mut u = vec![0.0; mesh.dof_count()];
+        let mut total = 0.0;
+        for _ in 0..PLACEMENT_ROUNDS {
+            let field = |p: [f64; 2]| {
+                let q = [
+                    p[0].clamp(0.0, self.phantom.width),
+                    p[1].clamp(0.0, self.phantom.depth),
+                    0.0,
+                ];
+                let v = locator.interpolate(&u, q).unwrap();
+                [v[0], v[1]]
+            };
+            // The entry: the front-face point whose image is on the needle
+            // (symmetric phantom: x stays on the line), in by u_y there.
+            let entry = field([x0, 0.0])[1];
+            let length = tip - entry;
+            let density = truth_density(q0, length);
+            let pieces = (length / 0.25e-3).ceil() as usize;
+            let h = length / pieces as f64;
+            let mut loads = vec![0.0; mesh.dof_count()];
+            total = 0.0;
+            for k in 0..pieces {
+                for (xi, w) in [
+                    (0.5 - 0.5 / 3f64.sqrt(), 0.5),
+                    (0.5 + 0.5 / 3f64.sqrt(), 0.5),
+                ] {
+                    let s = (k as f64 + xi) * h;
+                    let p = [x0, entry + s];
+                    // X + u(X) = p by substitution from X = p - u(p).
+                    let mut x = p;
+                    for _ in 0..SUBSTITUTIONS {
+                        let v = field(x);
+                        x = [p[0] - v[0], (p[1] - v[1]).max(0.0)];
+                    }
+                    let force = w * h * density(s);
+                    total += force;
+                    let weights = locator.weights([x[0], x[1], 0.0]).unwrap();
+                    for (n, wn) in weights {
+                        loads[3 * n + 1] += wn * force;
+                    }
+                }
+            }
+            u = self.problem.solve(&loads).unwrap().displacement;
+        }
         let markers = multiply(&self.interpolation, &u);
-        let tip = locator
-            .interpolate(&u, [self.needle_x, length, 0.0])
-            .unwrap();
         Frame {
             t,
-            tip: [self.needle_x + tip[0], length + tip[1]],
+            tip: [x0, tip],
             theta: 0.0,
-            base_force: [total[0], total[1]],
+            base_force: [0.0, total],
             displacement: (0..self.layout.len())
                 .map(|k| Some([markers[2 * k], markers[2 * k + 1]]))
                 .collect(),
@@ -161,7 +196,7 @@ impl Truth {
         }
     }
 
-    /// A noise-free insertion with frames at the given material depths.
+    /// A noise-free insertion with frames at the given spatial tip depths.
     pub fn insertion(&self, q0: f64, depths: &[f64], velocity: f64) -> Insertion {
         let frames = depths
             .iter()
