@@ -33,7 +33,9 @@
 //! ($a$ is held when no trial probes). Every [`effect::Effect`] adds parameters
 //! and changes one part: the modulus field, the supports, the shaft
 //! density, the kinematics (`out_of_plane` blends in a Tet10 slab through
-//! the thickness), or the measurement map (see [`effect`] and
+//! the thickness), the constitutive law (`material_nonlinearity` adds the
+//! neo-Hookean terms of second and third order in the load, see `series`),
+//! or the measurement map (see [`effect`] and
 //! `docs/adding-an-effect.md`). Details in the `forward` and `body`
 //! modules.
 //!
@@ -106,6 +108,7 @@ mod model;
 mod observe;
 mod place;
 mod rank;
+mod series;
 mod spec;
 mod whiten;
 mod write;
