@@ -468,7 +468,7 @@ fn invert_forces(
     }
     let field = MaterialField::Homogeneous(material);
     let regularisation = match campaign.noise {
-        Some(noise) => Regularisation::Discrepancy {
+        Some(noise) => Regularisation::MarginalLikelihood {
             sigma: noise.marker_sigma,
         },
         None => Regularisation::Gcv,
@@ -590,6 +590,10 @@ fn invert_forces(
              frames are those whose fit did not reach the stated noise.{velocity_note}",
             match regularisation {
                 Regularisation::Discrepancy { .. } => "weight by the discrepancy principle",
+                Regularisation::MarginalLikelihood { .. } => {
+                    "weight and tip prior by the marginal likelihood, the discrepancy \
+                     principle where the model does not reach the noise"
+                }
                 _ => "weight by generalised cross-validation",
             },
             MIN_DEPTH * 1e3
