@@ -38,6 +38,7 @@ use needle_identify::{IdentifyOptions, PlaneModel, identify_material};
 use needle_synth::{GroundTruth, Scenario, Stage, generate, load_scenario};
 
 use crate::camera::{calibrate_from_bundle, track_trial};
+use crate::diagnose_command::sequential_linear_algebra;
 use crate::diagnosis_report::{add_sections, print_ladder};
 use crate::output::OutputFolder;
 use crate::plot;
@@ -467,7 +468,7 @@ fn invert_forces(
     }
     let field = MaterialField::Homogeneous(material);
     let regularisation = match campaign.noise {
-        Some(noise) => Regularisation::Discrepancy {
+        Some(noise) => Regularisation::MarginalLikelihood {
             sigma: noise.marker_sigma,
         },
         None => Regularisation::Gcv,
@@ -589,6 +590,10 @@ fn invert_forces(
              frames are those whose fit did not reach the stated noise.{velocity_note}",
             match regularisation {
                 Regularisation::Discrepancy { .. } => "weight by the discrepancy principle",
+                Regularisation::MarginalLikelihood { .. } => {
+                    "weight and tip prior by the marginal likelihood, the discrepancy \
+                     principle where the model does not reach the noise"
+                }
                 _ => "weight by generalised cross-validation",
             },
             MIN_DEPTH * 1e3
@@ -620,6 +625,7 @@ fn diagnose_stage(folder: &OutputFolder, quick: bool, report: &mut Report) -> Re
         refinement: if quick { 1 } else { 2 },
         ..DiagnoseOptions::default()
     };
+    sequential_linear_algebra();
     let run = diagnose(&folder.file("bundle"), &ModelSpec::baseline(), &options)
         .map_err(|e| format!("diagnosis: {e}"))?;
     bar.finish_with_message(format!(

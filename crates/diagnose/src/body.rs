@@ -11,19 +11,24 @@
 //! compliant supports as springs on the fixed faces. In 2-D the foundation
 //! acts over the plane's area, so one stiffness per unit area means the same
 //! platform in both.
+//!
+//! For `material_nonlinearity` a body also gives the neo-Hookean terms of
+//! its solutions to third order in the load (see `series`), on the same
+//! factorisation.
 
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, OnceLock};
 
 use needle_fem::load::add_line_load;
 use needle_fem::{
-    Assembler, Dirichlet, Face, Formulation, LineDensity, LinearProblem, Locator, Material,
-    Materials, Mesh, Support,
+    Assembler, Dirichlet, Face, Formulation, HyperelasticAssembler, LineDensity, LinearProblem,
+    Locator, Material, Materials, Mesh, Support,
 };
 
 use crate::effect::SupportSpec;
 use crate::error::DiagnoseError;
 use crate::observe::Shaft;
 use crate::place::Placement;
+use crate::series::{ProbeSeries, Series};
 
 /// Factorisations kept per plane body (one per distinct normalised
 /// material field and support).
@@ -47,12 +52,19 @@ struct Key(Vec<u64>);
 /// along y, keyed by the bits of the contact point and the patch width.
 type ProbeResponses = ([u64; 3], [Vec<[f64; 2]>; 2]);
 
+/// The nonlinear terms of one contact patch (see [`Body::probe_series`]),
+/// same key.
+type ProbeSeriesEntry = ([u64; 3], ProbeSeries);
+
 /// A kept factorisation with the probe responses already solved on it
 /// (they depend on nothing else, so a fit solves each tip once per
 /// material).
 pub(crate) struct Entry<const D: usize> {
     pub problem: LinearProblem<D>,
+    /// The normalised materials it was factorised with.
+    materials: Materials,
     probes: Mutex<Vec<ProbeResponses>>,
+    series: Mutex<Vec<ProbeSeriesEntry>>,
 }
 
 /// A factorised problem and the factor its solutions are divided by.
@@ -73,6 +85,10 @@ pub(crate) struct Body<const D: usize> {
     marker_weights: Vec<Vec<(usize, f64)>>,
     fixed_faces: Vec<Face>,
     rigid: LinearProblem<D>,
+    /// Shortest y extent of an element (m).
+    element_size: f64,
+    /// Neo-Hookean internal forces, built on first use.
+    hyperelastic: OnceLock<HyperelasticAssembler<D>>,
     /// Unfactorised problems with unit springs, per support layout.
     templates: Mutex<Vec<([bool; 2], LinearProblem<D>)>>,
     cache: Mutex<Vec<(Key, Arc<Entry<D>>)>>,
@@ -111,7 +127,7 @@ impl<const D: usize> Body<D> {
             mesh.connectivity().to_vec(),
             (0..element_count).collect(),
         )?;
-        let element_y = (0..element_count)
+        let element_y: Vec<[f64; 2]> = (0..element_count)
             .map(|e| {
                 let ys = mesh.element(e).iter().map(|&n| mesh.node(n)[1]);
                 let lo = ys.clone().fold(f64::INFINITY, f64::min);
@@ -144,6 +160,10 @@ impl<const D: usize> Body<D> {
             vec![],
             fixed_dirichlet(&mesh, &fixed_faces),
         )?;
+        let element_size = element_y
+            .iter()
+            .map(|[lo, hi]| hi - lo)
+            .fold(f64::INFINITY, f64::min);
         let extent = mesh
             .nodes()
             .iter()
@@ -158,6 +178,8 @@ impl<const D: usize> Body<D> {
             marker_weights,
             fixed_faces,
             rigid,
+            element_size,
+            hyperelastic: OnceLock::new(),
             templates: Mutex::new(Vec::new()),
             cache: Mutex::new(Vec::new()),
         })
@@ -214,7 +236,9 @@ impl<const D: usize> Body<D> {
         problem.factorize(&materials)?;
         let entry = Arc::new(Entry {
             problem,
+            materials,
             probes: Mutex::new(Vec::new()),
+            series: Mutex::new(Vec::new()),
         });
         let mut cache = self.cache.lock().expect("cache lock");
         let capacity = if D == 2 {
@@ -349,6 +373,81 @@ impl<const D: usize> Body<D> {
             .expect("probe cache lock")
             .push((bits, responses));
         Ok(out)
+    }
+
+    /// The neo-Hookean terms $u_2 + u_3$ of the marker displacements under
+    /// a probe on the patch at `contact`, as forms in the probe force (see
+    /// [`ProbeSeries`]). Solved once per factorisation and tip, like
+    /// [`Body::probe_responses`].
+    pub fn probe_series(
+        &self,
+        locator: &Locator<'_, D>,
+        factorized: &Factorized<D>,
+        contact: [f64; 2],
+        width: f64,
+    ) -> Result<ProbeSeries, DiagnoseError> {
+        let bits = [contact[0].to_bits(), contact[1].to_bits(), width.to_bits()];
+        let cache = &factorized.entry.series;
+        if let Some((_, series)) = cache
+            .lock()
+            .expect("series cache lock")
+            .iter()
+            .find(|(k, _)| *k == bits)
+        {
+            return Ok(series.scaled(factorized.scale));
+        }
+        let loads = [
+            self.unit_probe_load(locator, contact, width, 0)?,
+            self.unit_probe_load(locator, contact, width, 1)?,
+        ];
+        let solved = factorized
+            .entry
+            .problem
+            .displacements_many(&[&loads[0], &loads[1]])?;
+        let (gx, gy) = (&solved[0], &solved[1]);
+        let sum: Vec<f64> = gx.iter().zip(gy).map(|(a, b)| a + b).collect();
+        let difference: Vec<f64> = gx.iter().zip(gy).map(|(a, b)| a - b).collect();
+        let terms = self.nonlinear_terms(factorized, &[gx, gy, &sum, &difference])?;
+        let at_markers: Vec<[Vec<[f64; 2]>; 2]> = terms
+            .iter()
+            .map(|pair| pair.each_ref().map(|u| self.markers(u, 1.0)))
+            .collect();
+        let directions: [[Vec<[f64; 2]>; 2]; 4] = at_markers
+            .try_into()
+            .unwrap_or_else(|_| unreachable!("four directions give four terms"));
+        let series = ProbeSeries::from_directions(directions);
+        let out = series.scaled(factorized.scale);
+        cache
+            .lock()
+            .expect("series cache lock")
+            .push((bits, series));
+        Ok(out)
+    }
+
+    /// The neo-Hookean terms $[c^2 u_2, c^3 u_3]$ of the solutions
+    /// $c\,u_1$ of `factorized` as it returns them ($c$ its scale; see
+    /// `series`).
+    pub fn nonlinear_terms(
+        &self,
+        factorized: &Factorized<D>,
+        solutions: &[&[f64]],
+    ) -> Result<Vec<[Vec<f64>; 2]>, DiagnoseError> {
+        Series {
+            assembler: self.hyperelastic()?,
+            materials: &factorized.entry.materials,
+            problem: &factorized.entry.problem,
+            element_size: self.element_size,
+        }
+        .terms(solutions)
+    }
+
+    /// The neo-Hookean assembler of the body's mesh.
+    fn hyperelastic(&self) -> Result<&HyperelasticAssembler<D>, DiagnoseError> {
+        if let Some(assembler) = self.hyperelastic.get() {
+            return Ok(assembler);
+        }
+        let built = HyperelasticAssembler::new(self.rigid.assembler().clone())?;
+        Ok(self.hyperelastic.get_or_init(|| built))
     }
 
     /// Load vector of a unit force along `axis` (0: x, 1: y) on the
@@ -493,5 +592,141 @@ impl<const D: usize> Body<D> {
                 [v[0] / scale, v[1] / scale]
             })
             .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use needle_fem::{ElementKind, HyperelasticProblem, NonlinearOptions, RectangleMesh};
+
+    use super::*;
+    use crate::series::ProbeSeries;
+
+    const MODULUS: f64 = 25.0e3;
+    const POISSON: f64 = 0.45;
+    const THICKNESS: f64 = 0.0075;
+    const WIDTH: f64 = 0.003;
+
+    /// A plane-strain body of the paper's phantom, back face fixed, with
+    /// markers on a 3 x 3 grid.
+    fn plane_body() -> Body<2> {
+        let mesh = RectangleMesh::uniform(0.075, 0.075, 12, 12)
+            .unwrap()
+            .build(ElementKind::Tri6)
+            .unwrap();
+        let rest: Vec<[f64; 2]> = [0.02, 0.0375, 0.055]
+            .iter()
+            .flat_map(|&y| [0.02, 0.0375, 0.055].map(|x| [x, y]))
+            .collect();
+        Body::new(
+            mesh,
+            Formulation::PlaneStrain {
+                thickness: THICKNESS,
+            },
+            THICKNESS,
+            vec![Face::Back],
+            &rest,
+        )
+        .unwrap()
+    }
+
+    /// Largest marker difference between `a` and `b`.
+    fn gap(a: &[[f64; 2]], b: &[[f64; 2]]) -> f64 {
+        a.iter()
+            .zip(b)
+            .map(|(a, b)| (a[0] - b[0]).abs().max((a[1] - b[1]).abs()))
+            .fold(0.0, f64::max)
+    }
+
+    /// The marker displacements under an oblique probe `force` on the
+    /// front face: linear, to second order, to third order, and the
+    /// neo-Hookean equilibrium solved by Newton's method.
+    fn four_answers(body: &Body<2>, force: [f64; 2]) -> [Vec<[f64; 2]>; 4] {
+        let moduli = vec![MODULUS; body.centroids.len()];
+        let factorized = body
+            .factorized(&moduli, POISSON, SupportSpec::default())
+            .unwrap();
+        let locator = body.locator();
+        let contact = [0.0375, 0.0];
+        let [gx, gy] = body
+            .probe_responses(&locator, &factorized, contact, WIDTH)
+            .unwrap();
+        let series = body
+            .probe_series(&locator, &factorized, contact, WIDTH)
+            .unwrap();
+        let [fx, fy] = force;
+        let linear: Vec<[f64; 2]> = (0..gx.len())
+            .map(|m| [0, 1].map(|i| fx * gx[m][i] + fy * gy[m][i]))
+            .collect();
+        // The second order alone: the series without its cubic terms.
+        let quadratic = ProbeSeries {
+            cubic: series.cubic.clone().map(|c| vec![[0.0; 2]; c.len()]),
+            ..series.clone()
+        };
+        let plus = |terms: &ProbeSeries| -> Vec<[f64; 2]> {
+            let [value, _, _] = terms.at(force);
+            linear
+                .iter()
+                .zip(value)
+                .map(|(a, b)| [a[0] + b[0], a[1] + b[1]])
+                .collect()
+        };
+        let (second, third) = (plus(&quadratic), plus(&series));
+        // The full Newton solve on the same mesh, loads and constraints.
+        let mut loads = vec![0.0; body.mesh.dof_count()];
+        for axis in 0..2 {
+            let unit = body
+                .unit_probe_load(&locator, contact, WIDTH, axis)
+                .unwrap();
+            for (l, u) in loads.iter_mut().zip(unit) {
+                *l += force[axis] * u;
+            }
+        }
+        let materials = Materials(
+            moduli
+                .iter()
+                .enumerate()
+                .map(|(e, &m)| Material::for_region(e, m, POISSON).unwrap())
+                .collect(),
+        );
+        let problem = HyperelasticProblem::new(body.rigid.clone()).unwrap();
+        let solved = problem
+            .solve_newton(&materials, &loads, None, &NonlinearOptions::default())
+            .unwrap();
+        let exact = body.markers(&solved.displacement, 1.0);
+        [linear, second, third, exact]
+    }
+
+    #[test]
+    fn each_term_of_the_series_gains_one_order_in_the_load() {
+        let body = plane_body();
+        // Oblique so that the mixed coefficients matter; 0.2 N on the 3 mm
+        // patch strains the tissue under it by tens of percent.
+        let mut errors = Vec::new();
+        for load in [0.2, 0.1, 0.05] {
+            let [linear, second, third, exact] = four_answers(&body, [0.4 * load, load]);
+            let error = [
+                gap(&linear, &exact),
+                gap(&second, &exact),
+                gap(&third, &exact),
+            ];
+            eprintln!("{load} N: linear, second and third order off by {error:?} m");
+            errors.push(error);
+        }
+        for pair in errors.windows(2) {
+            // Halving the load divides the error of the series truncated
+            // after order n by 2^(n + 1).
+            for (order, expected) in [(0, 4.0), (1, 8.0), (2, 16.0)] {
+                let ratio = pair[0][order] / pair[1][order];
+                assert!(
+                    (ratio / expected - 1.0).abs() < 0.12,
+                    "order {}: ratio {ratio}",
+                    order + 1
+                );
+            }
+        }
+        // At the largest load each term removes most of the error left.
+        let [linear, second, third] = errors[0];
+        assert!(second < 0.1 * linear && third < 0.2 * second, "{errors:?}");
     }
 }

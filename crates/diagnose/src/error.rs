@@ -13,6 +13,9 @@ pub enum DiagnoseError {
     /// The finite-element model failed (a load outside the mesh, a singular system).
     #[error("finite-element model: {0}")]
     Fem(#[from] needle_fem::FemError),
+    /// The neo-Hookean internal force could not be evaluated.
+    #[error("hyperelastic model: {0}")]
+    Nonlinear(#[from] needle_fem::NonlinearError),
     /// The least-squares engine failed.
     #[error("fit: {0}")]
     Fit(#[from] needle_lsq::LsqError),

@@ -90,14 +90,28 @@ impl Problem for FitProblem<'_> {
     }
 }
 
+/// Relative tolerance (cost reduction, step, gradient) of the fits that
+/// set the current model.
+pub(crate) const MODEL_TOLERANCE: f64 = 1e-8;
+
+/// Relative tolerance of a candidate's refit in the ranking. A refit
+/// stopped early has a chi-square a little too high, so its likelihood
+/// ratio is a lower bound: the ranking can only understate a candidate,
+/// never name one the data do not support, and the candidate named is
+/// refitted at [`MODEL_TOLERANCE`] before the next step. At 1e-5 a
+/// further step would lower $\chi^2$ by less than $10^{-5}\chi^2$.
+pub(crate) const CANDIDATE_TOLERANCE: f64 = 1e-5;
+
 /// Fits `model` from `start` (its parameters' `initial` where `start` is
-/// shorter), holding the parameters flagged in `fixed`, and the probe
-/// width when no frame has a probe (nothing would determine it).
+/// shorter) to the relative `tolerance`, holding the parameters flagged
+/// in `fixed`, and the probe width when no frame has a probe (nothing
+/// would determine it).
 pub(crate) fn fit_model(
     context: &Context,
     model: &Model,
     start: &[f64],
     fixed: &[bool],
+    tolerance: f64,
 ) -> Result<Fitted, DiagnoseError> {
     let problem = FitProblem { context, model };
     let mut fixed = fixed.to_vec();
@@ -107,9 +121,9 @@ pub(crate) fn fit_model(
     }
     let parameters = model.lsq_parameters(start, &fixed);
     let mut engine = LevenbergMarquardt::default();
-    engine.options.function_tolerance = 1e-8;
-    engine.options.step_tolerance = 1e-8;
-    engine.options.gradient_tolerance = 1e-8;
+    engine.options.function_tolerance = tolerance;
+    engine.options.step_tolerance = tolerance;
+    engine.options.gradient_tolerance = tolerance;
     engine.options.max_evaluations = 300;
     let report = engine.minimize(&problem, &parameters)?;
     let params: Vec<f64> = report.params.iter().copied().collect();

@@ -33,6 +33,19 @@
 //!   length interpolated in $L$ between the trial's frames.
 //! - Markers: $p = x_\text{rest} + H u$, mapped through every effect's
 //!   measurement map, minus $x_\text{rest}$.
+//! - Material: with a nonlinear weight $w \ne 0$ (`material_nonlinearity`)
+//!   every frame adds $w\,(u_2 + u_3)$, the neo-Hookean terms of second
+//!   and third order in the load of the plane model's linear solution (see
+//!   `series`), on the same factorisation: a probe frame's are forms in its
+//!   measured force, solved once per tip; a needle frame's are solved for
+//!   its final placement, which stays that of the linear solution, and the
+//!   entry offset gains $w\,\hat d \cdot (u_2 + u_3)$ at the entry's
+//!   material point. With $w = 0$ none of it is computed. The terms come
+//!   from the plane body whatever the slab's weight: in the slab the probe
+//!   patch and the needle are lines of force, next to which the strain
+//!   grows without bound as the mesh is refined, so the series has almost
+//!   no range there (on a coarse slab its third-order term overtakes the
+//!   second beyond about 0.02 N, and Newton's method fails from 0.04 N).
 
 use needle_fem::{ElementKind, Face, Formulation, MarkerGrid, RectangleMesh, SlabMesh};
 
@@ -58,10 +71,52 @@ pub(crate) struct Prediction {
 /// One right-hand side of a group of frames.
 #[derive(Debug, Clone, Copy)]
 enum Column {
-    /// Unit force along `axis` at a probe's contact point.
-    Probe { contact: [f64; 2], axis: usize },
+    /// Unit force along `axis` at a probe's contact point, of a frame
+    /// whose measured force is `force`.
+    Probe {
+        contact: [f64; 2],
+        axis: usize,
+        force: [f64; 2],
+    },
     /// The needle of frame `frame`.
     Needle { frame: usize },
+}
+
+/// The neo-Hookean part of one frame's marker displacements (see the
+/// module doc), summed over the bodies with their weights; empty vectors
+/// stand for zero.
+#[derive(Debug, Clone, Default)]
+struct Nonlinear {
+    displacement: Vec<[f64; 2]>,
+    /// Probe frames: the derivatives of `displacement` in $F_x$ and $F_y$.
+    sensitivity: [Vec<[f64; 2]>; 2],
+}
+
+/// `weight * values` added to `target` (zero if empty).
+fn accumulate(target: &mut Vec<[f64; 2]>, weight: f64, values: impl Iterator<Item = [f64; 2]>) {
+    let values: Vec<[f64; 2]> = values.collect();
+    if target.is_empty() {
+        target.resize(values.len(), [0.0; 2]);
+    }
+    for (t, v) in target.iter_mut().zip(values) {
+        t[0] += weight * v[0];
+        t[1] += weight * v[1];
+    }
+}
+
+/// Entry `m` of a marker vector that may be empty (zero).
+fn at(values: &[[f64; 2]], m: usize) -> [f64; 2] {
+    values.get(m).copied().unwrap_or([0.0; 2])
+}
+
+/// What the bodies' solutions add up to, per column of a group.
+struct Columns {
+    /// Marker displacements (probe columns: per unit force along the axis).
+    displacement: Vec<Vec<[f64; 2]>>,
+    /// Needle columns: the entry offset $\delta$.
+    entry_offsets: Vec<f64>,
+    /// The first column of each frame: its neo-Hookean part.
+    nonlinear: Vec<Nonlinear>,
 }
 
 pub(crate) struct Forward {
@@ -235,22 +290,23 @@ impl Forward {
     }
 
     /// The in-plane displacement of every marker under every column on
-    /// `body`, times `weight`, added to `out[column][marker]`; for needle
-    /// columns, the entry offset $\delta$ times `weight` added to
-    /// `entry_offsets[column]`.
+    /// `body`, times `weight`, added to `out.displacement[column][marker]`;
+    /// for needle columns, the entry offset $\delta$ times `weight` added to
+    /// `out.entry_offsets[column]`; the neo-Hookean parts times `nonlinear`
+    /// (not times `weight`) to `out.nonlinear`.
     #[allow(clippy::too_many_arguments)]
     fn add_columns<const D: usize>(
         &self,
         body: &Body<D>,
         weight: f64,
+        nonlinear: f64,
         model: &Model,
         p: &[f64],
         obs: &Observations,
         trial: usize,
         supports: SupportSpec,
         columns: &[Column],
-        out: &mut [Vec<[f64; 2]>],
-        entry_offsets: &mut [f64],
+        out: &mut Columns,
         given: Option<&[Placement]>,
     ) -> Result<Vec<Placement>, DiagnoseError> {
         let context = &obs.trials[trial];
@@ -261,14 +317,27 @@ impl Forward {
         for (k, column) in columns.iter().enumerate() {
             match *column {
                 // Both axes come together from one tip (x first).
-                Column::Probe { contact, axis: 0 } => {
+                Column::Probe {
+                    contact,
+                    axis: 0,
+                    force,
+                } => {
                     let width = model.baseline(p).probe_width;
                     let responses = body.probe_responses(&locator, &factorized, contact, width)?;
                     for (axis, response) in responses.iter().enumerate() {
-                        for (value, u) in out[k + axis].iter_mut().zip(response) {
+                        for (value, u) in out.displacement[k + axis].iter_mut().zip(response) {
                             value[0] += weight * u[0];
                             value[1] += weight * u[1];
                         }
+                    }
+                    if nonlinear != 0.0 {
+                        let series = body.probe_series(&locator, &factorized, contact, width)?;
+                        let [value, along_x, along_y] = series.at(force);
+                        let w = nonlinear;
+                        let part = &mut out.nonlinear[k];
+                        accumulate(&mut part.displacement, w, value.into_iter());
+                        accumulate(&mut part.sensitivity[0], w, along_x.into_iter());
+                        accumulate(&mut part.sensitivity[1], w, along_y.into_iter());
                     }
                 }
                 Column::Probe { .. } => {}
@@ -332,11 +401,37 @@ impl Forward {
                 continue;
             }
             for ((u, &(k, _, _)), placement) in solutions.iter().zip(&needles).zip(&placements) {
-                for (value, d) in out[k].iter_mut().zip(body.markers(u, factorized.scale)) {
+                for (value, d) in out.displacement[k]
+                    .iter_mut()
+                    .zip(body.markers(u, factorized.scale))
+                {
                     value[0] += weight * d[0];
                     value[1] += weight * d[1];
                 }
-                entry_offsets[k] += weight * placement.entry_offset;
+                out.entry_offsets[k] += weight * placement.entry_offset;
+            }
+            if nonlinear != 0.0 {
+                let refs: Vec<&[f64]> = solutions.iter().map(|u| u.as_slice()).collect();
+                let terms = body.nonlinear_terms(&factorized, &refs)?;
+                // The terms come as c^2 u_2 and c^3 u_3 (see `series`).
+                let c = factorized.scale;
+                let w = nonlinear;
+                for ((terms, &(k, _, shaft)), placement) in
+                    terms.iter().zip(&needles).zip(&placements)
+                {
+                    let d = shaft.direction;
+                    for (term, divisor) in terms.iter().zip([c * c, c * c * c]) {
+                        let markers = body.markers(term, divisor);
+                        accumulate(&mut out.nonlinear[k].displacement, w, markers.into_iter());
+                        let entry = body.mid_plane_displacement(
+                            &locator,
+                            term,
+                            divisor,
+                            placement.material[0],
+                        )?;
+                        out.entry_offsets[k] += w * (d[0] * entry[0] + d[1] * entry[1]);
+                    }
+                }
             }
         }
         Ok(placements)
@@ -351,9 +446,11 @@ impl Forward {
     ) -> Result<Prediction, DiagnoseError> {
         let mut supports = SupportSpec::default();
         let mut slab_weight = 0.0;
+        let mut nonlinear = 0.0;
         for (effect, own) in model.effects_with(p) {
             effect.supports(own, &mut supports);
             slab_weight += effect.slab_weight(own);
+            nonlinear += effect.nonlinear_weight(own);
         }
         let plane_weight = 1.0 - slab_weight;
         let marker_count = obs.marker_count();
@@ -393,9 +490,14 @@ impl Forward {
                 first_column.push(columns.len());
                 match obs.frames[f].load {
                     Load::Free => {}
-                    Load::Probe { contact, .. } => {
-                        columns.push(Column::Probe { contact, axis: 0 });
-                        columns.push(Column::Probe { contact, axis: 1 });
+                    Load::Probe { contact, force, .. } => {
+                        for axis in 0..2 {
+                            columns.push(Column::Probe {
+                                contact,
+                                axis,
+                                force,
+                            });
+                        }
                     }
                     Load::Needle(_) => columns.push(Column::Needle { frame: f }),
                 }
@@ -403,35 +505,39 @@ impl Forward {
             if columns.is_empty() {
                 continue;
             }
-            let mut displacement = vec![vec![[0.0; 2]; obs.rest.len()]; columns.len()];
-            let mut entry_offsets = vec![0.0; columns.len()];
+            let mut out = Columns {
+                displacement: vec![vec![[0.0; 2]; obs.rest.len()]; columns.len()],
+                entry_offsets: vec![0.0; columns.len()],
+                nonlinear: vec![Nonlinear::default(); columns.len()],
+            };
             // The plane model always runs (at weight 0 if need be): the
-            // slab takes its needle placement (see the module doc).
+            // slab takes its needle placement, and the neo-Hookean terms
+            // are the plane's (see the module doc).
             let placed = self.add_columns(
                 &self.plane,
                 plane_weight,
+                nonlinear,
                 model,
                 p,
                 obs,
                 first,
                 supports,
                 &columns,
-                &mut displacement,
-                &mut entry_offsets,
+                &mut out,
                 None,
             )?;
             if slab_weight != 0.0 {
                 self.add_columns(
                     &self.slab,
                     slab_weight,
+                    0.0,
                     model,
                     p,
                     obs,
                     first,
                     supports,
                     &columns,
-                    &mut displacement,
-                    &mut entry_offsets,
+                    &mut out,
                     Some(&placed),
                 )?;
             }
@@ -439,8 +545,10 @@ impl Forward {
                 let frame = &obs.frames[f];
                 let start = first_column[k];
                 if let Load::Needle(shaft) = frame.load {
-                    entries[frame.trial].push((shaft.length, entry_offsets[start] / shaft.length));
+                    entries[frame.trial]
+                        .push((shaft.length, out.entry_offsets[start] / shaft.length));
                 }
+                let part = &out.nonlinear[start];
                 let mut response = match frame.load {
                     Load::Probe { force_sigma, .. } => Some(ProbeResponse {
                         start: frame_offset[f],
@@ -451,20 +559,26 @@ impl Forward {
                     _ => None,
                 };
                 for (j, &(m, _)) in frame.markers.iter().enumerate() {
+                    let nl = at(&part.displacement, m);
                     let u = match frame.load {
                         Load::Probe { force, .. } => {
-                            let gx = displacement[start][m];
-                            let gy = displacement[start + 1][m];
+                            let gx = out.displacement[start][m];
+                            let gy = out.displacement[start + 1][m];
                             if let Some(r) = response.as_mut() {
-                                r.unit_x.extend_from_slice(&gx);
-                                r.unit_y.extend_from_slice(&gy);
+                                // d u / d F: the nonlinear part's share too.
+                                let [sx, sy] = [0, 1].map(|a| at(&part.sensitivity[a], m));
+                                r.unit_x.extend_from_slice(&[gx[0] + sx[0], gx[1] + sx[1]]);
+                                r.unit_y.extend_from_slice(&[gy[0] + sy[0], gy[1] + sy[1]]);
                             }
                             [
-                                force[0] * gx[0] + force[1] * gy[0],
-                                force[0] * gx[1] + force[1] * gy[1],
+                                force[0] * gx[0] + force[1] * gy[0] + nl[0],
+                                force[0] * gx[1] + force[1] * gy[1] + nl[1],
                             ]
                         }
-                        Load::Needle(_) => displacement[start][m],
+                        Load::Needle(_) => {
+                            let d = out.displacement[start][m];
+                            [d[0] + nl[0], d[1] + nl[1]]
+                        }
                         Load::Free => [0.0; 2],
                     };
                     let rest = obs.rest[m];
@@ -759,6 +873,67 @@ mod tests {
         assert!(gap > 0.05 * largest, "gap {gap} of {largest}");
         for ((a, b), h) in plane.iter().zip(&slab).zip(&half) {
             assert!((0.5 * (a + b) - h).abs() <= 1e-12 * largest.max(1e-12));
+        }
+    }
+
+    #[test]
+    fn nonlinear_weight_adds_its_terms_linearly_to_every_channel() {
+        let (obs, forward, start) = paper_forward();
+        let model = with_effect(&forward, start, "material_nonlinearity");
+        let at = |w: f64| {
+            forward
+                .predict(&model, &[25.0e3, 0.45, 10.0, 0.002, w], &obs)
+                .unwrap()
+        };
+        let (linear, full, half) = (at(0.0), at(1.0), at(0.5));
+        let m = obs.marker_count();
+        let largest = |range: std::ops::Range<usize>, v: &[f64]| {
+            range.map(|i| v[i].abs()).fold(0.0, f64::max)
+        };
+        let change = |range: std::ops::Range<usize>| {
+            let gap: Vec<f64> = full
+                .values
+                .iter()
+                .zip(&linear.values)
+                .map(|(a, b)| a - b)
+                .collect();
+            largest(range, &gap)
+        };
+        // The 0.2 N probe and the needle strain the soft phantom by several
+        // percent at the markers: micrometres of marker change, and the
+        // entry's drag changes the base force.
+        let marker_change = change(0..m);
+        assert!(
+            marker_change > 1e-6 && marker_change < 0.3 * largest(0..m, &linear.values),
+            "markers move by {marker_change} m"
+        );
+        assert!(change(m..linear.values.len()) > 1e-6);
+        for ((a, b), h) in linear.values.iter().zip(&full.values).zip(&half.values) {
+            assert!((0.5 * (a + b) - h).abs() <= 1e-12 * (1.0 + a.abs()));
+        }
+        // The probe frame's force sensitivity includes the nonlinear terms.
+        assert_ne!(linear.probe_responses, full.probe_responses);
+        // With the slab's kinematics the same terms (the plane's) are added.
+        let both = Model::new(
+            &ModelSpec::from_ids(&["out_of_plane", "material_nonlinearity"]).unwrap(),
+            &forward.geometry,
+            start,
+        )
+        .unwrap();
+        let slab = |w: f64| {
+            forward
+                .predict(&both, &[25.0e3, 0.45, 10.0, 0.002, 1.0, w], &obs)
+                .unwrap()
+                .values
+        };
+        let (slab_linear, slab_full) = (slab(0.0), slab(1.0));
+        for i in 0..m {
+            let on_plane = full.values[i] - linear.values[i];
+            let on_slab = slab_full[i] - slab_linear[i];
+            assert!(
+                (on_plane - on_slab).abs() <= 1e-12,
+                "{i}: {on_plane} vs {on_slab}"
+            );
         }
     }
 }

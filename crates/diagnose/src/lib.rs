@@ -33,7 +33,9 @@
 //! ($a$ is held when no trial probes). Every [`effect::Effect`] adds parameters
 //! and changes one part: the modulus field, the supports, the shaft
 //! density, the kinematics (`out_of_plane` blends in a Tet10 slab through
-//! the thickness), or the measurement map (see [`effect`] and
+//! the thickness), the constitutive law (`material_nonlinearity` adds the
+//! neo-Hookean terms of second and third order in the load, see `series`),
+//! or the measurement map (see [`effect`] and
 //! `docs/adding-an-effect.md`). Details in the `forward` and `body`
 //! modules.
 //!
@@ -59,11 +61,14 @@
 //!   (see `rank`).
 //! - **Refit**: the model with the effect added; likelihood ratio
 //!   $\Lambda = \chi^2_\text{now} - \chi^2_\text{with} \sim \chi^2_{k'}$,
-//!   AIC and BIC. Only candidates whose score p-value is below 0.05, and at
-//!   least the three best, are refitted (`Candidate::refitted`); a refit is
-//!   the costliest work of a step, and the score is the local form of the
-//!   likelihood ratio, so a candidate far from significant by score is
-//!   hardly significant by refit (the leaders are refitted in any case).
+//!   AIC and BIC. The three best candidates by score are refitted, and any
+//!   other whose score p-value is below 0.05 and whose score reaches a
+//!   tenth of the leaders' best likelihood ratio (`Candidate::refitted`):
+//!   a refit is the costliest work of a step, and the score is the local
+//!   form of the likelihood ratio, so a candidate far behind by score is
+//!   hardly the one that explains most by refit. Refits stop at a relative
+//!   tolerance of $10^{-5}$ (their likelihood ratio is then a lower bound);
+//!   the model that continues the ladder is refitted to $10^{-8}$.
 //!
 //! ## The verdict
 //!
@@ -103,6 +108,7 @@ mod model;
 mod observe;
 mod place;
 mod rank;
+mod series;
 mod spec;
 mod whiten;
 mod write;

@@ -20,10 +20,15 @@
 //! The Jacobian in the current parameters is the same for every candidate
 //! (each effect is silent at its null), so it is computed once per step.
 //!
-//! **Refit.** Candidates with a score p-value below 0.05, and at least the
-//! three best by score, are refitted; the others keep their score alone
-//! (`refitted: false`), which saves the costliest work of a step. The
-//! model with the effect added is fitted from
+//! **Refit.** The three best candidates by score are refitted first. The
+//! others are refitted only if their score p-value is below 0.05 *and*
+//! their score is at least a tenth of the largest likelihood ratio the
+//! leaders reached: the score is the local (quadratic) prediction of the
+//! likelihood ratio, so a candidate below that bar would have to explain
+//! ten times what its score says to be named (on the quick campaign the
+//! ratio of the two stays within 1.0 to 2.2). The rest keep their score
+//! alone (`refitted: false`), which saves the costliest work of a step: a
+//! refit is a whole fit. The model with the effect added is fitted from
 //! $(\hat\theta, \psi_\text{initial})$; the likelihood ratio
 //! $\Lambda = \chi^2_\text{now} - \chi^2_\text{with}$ is compared with
 //! $\chi^2_{k'}$, $k'$ all the effect's parameters. AIC $= \chi^2 + 2 n_p$
@@ -35,7 +40,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::chi2::chi2_upper_tail;
 use crate::error::DiagnoseError;
-use crate::fit::{Context, Fit, Fitted, fit_model};
+use crate::fit::{CANDIDATE_TOLERANCE, Context, Fit, Fitted, fit_model};
 use crate::model::{Model, PROBE_WIDTH};
 use crate::spec::ModelSpec;
 
@@ -73,13 +78,16 @@ pub(crate) struct Ranked {
     pub fitted: Option<Fitted>,
 }
 
-/// Candidates whose score p-value is below this are always refitted (far
-/// above any Bonferroni level, so no candidate that could be named is
-/// skipped for want of a score).
-const REFIT_SCORE_P: f64 = 0.05;
-/// At least this many candidates, the leaders by score p-value, are refitted
-/// at every step (a local score can understate an effect).
+/// This many candidates, the leaders by score p-value, are refitted at
+/// every step (a local score can understate an effect).
 const REFIT_LEADERS: usize = 3;
+/// Other candidates are refitted only with a score p-value below this (far
+/// above any Bonferroni level, so no candidate that could be named is
+/// skipped for want of a score) ...
+const REFIT_SCORE_P: f64 = 0.05;
+/// ... and a score at least this fraction of the leaders' largest
+/// likelihood ratio.
+const REFIT_SCORE_FRACTION: f64 = 0.1;
 
 /// The whitened residuals of the current fit and their Jacobian in the
 /// current model's free parameters: shared by every candidate's score test,
@@ -198,17 +206,17 @@ fn score_test(
 }
 
 /// Scores every catalog effect not in `current`, refits those worth it
-/// (score p-value below [`REFIT_SCORE_P`], and at least the
-/// [`REFIT_LEADERS`] best), and returns them all, best first: refitted ones
-/// by likelihood-ratio p-value, then by score.
+/// (the [`REFIT_LEADERS`] best, then any other with a score p-value below
+/// [`REFIT_SCORE_P`] and a score of at least [`REFIT_SCORE_FRACTION`] of
+/// the leaders' best likelihood ratio), and returns them all, best first:
+/// refitted ones by likelihood-ratio p-value, then by score.
 pub(crate) fn rank_candidates(
     context: &Context,
     current: &Model,
     fitted: &Fitted,
 ) -> Result<Vec<Ranked>, DiagnoseError> {
-    let n = context.measured.len() as f64;
     let shared = CurrentJacobian::new(context, current, fitted)?;
-    let scored = crate::effect::catalog()
+    let mut scored = crate::effect::catalog()
         .into_iter()
         .filter(|effect| !current.spec.effects.iter().any(|id| id == effect.id()))
         .map(|effect| -> Result<_, DiagnoseError> {
@@ -216,48 +224,92 @@ pub(crate) fn rank_candidates(
             let start = current.baseline(&fitted.params);
             let augmented = Model::new(&spec, &context.forward.geometry, start)?;
             let (score, score_dof) = score_test(context, &shared, fitted, &augmented)?;
-            Ok((spec, augmented, score, score_dof))
+            Ok(Scored {
+                candidate: Candidate {
+                    effect: effect.id().to_string(),
+                    score,
+                    score_p: chi2_upper_tail(score, score_dof),
+                    score_dof,
+                    refitted: false,
+                    likelihood_ratio: None,
+                    likelihood_ratio_p: None,
+                    aic: None,
+                    bic: None,
+                    fit_with: fitted.fit,
+                },
+                spec,
+                augmented,
+            })
         })
         .collect::<Result<Vec<_>, _>>()?;
-    let mut by_score: Vec<usize> = (0..scored.len()).collect();
-    let score_p = |k: usize| chi2_upper_tail(scored[k].2, scored[k].3);
-    by_score.sort_by(|&a, &b| score_p(a).total_cmp(&score_p(b)));
-    let refit: Vec<bool> = (0..scored.len())
-        .map(|k| score_p(k) < REFIT_SCORE_P || by_score.iter().take(REFIT_LEADERS).any(|&j| j == k))
-        .collect();
-    // Refits are independent: one per thread.
-    let mut out = scored
+    // p-values underflow to 0 for large scores: those tie-break by score.
+    scored.sort_by(|a, b| {
+        (a.candidate.score_p.total_cmp(&b.candidate.score_p))
+            .then(b.candidate.score.total_cmp(&a.candidate.score))
+    });
+    let others = scored.split_off(REFIT_LEADERS.min(scored.len()));
+    let mut out = refit_all(context, current, fitted, scored)?;
+    let best_ratio = out
+        .iter()
+        .filter_map(|r| r.candidate.likelihood_ratio)
+        .fold(0.0, f64::max);
+    let (worth, rest): (Vec<Scored>, Vec<Scored>) = others.into_iter().partition(|s| {
+        s.candidate.score_p < REFIT_SCORE_P
+            && s.candidate.score >= REFIT_SCORE_FRACTION * best_ratio
+    });
+    out.extend(refit_all(context, current, fitted, worth)?);
+    out.extend(rest.into_iter().map(|s| Ranked {
+        candidate: s.candidate,
+        spec: s.spec,
+        fitted: None,
+    }));
+    out.sort_by(|a, b| {
+        let p = |r: &Ranked| r.candidate.likelihood_ratio_p.unwrap_or(f64::INFINITY);
+        p(a).total_cmp(&p(b))
+            .then(b.candidate.score.total_cmp(&a.candidate.score))
+    });
+    Ok(out)
+}
+
+/// A candidate scored, with its augmented model.
+struct Scored {
+    candidate: Candidate,
+    spec: ModelSpec,
+    augmented: Model,
+}
+
+/// Refits every candidate of `scored` (one per thread) and fills in its
+/// likelihood ratio and information criteria.
+fn refit_all(
+    context: &Context,
+    current: &Model,
+    fitted: &Fitted,
+    scored: Vec<Scored>,
+) -> Result<Vec<Ranked>, DiagnoseError> {
+    let n = context.measured.len() as f64;
+    scored
         .into_par_iter()
-        .zip(refit)
-        .map(|((spec, augmented, score, score_dof), refit)| {
-            let effect = spec.effects.last().cloned().unwrap_or_default();
-            let mut candidate = Candidate {
-                effect,
-                score,
-                score_p: chi2_upper_tail(score, score_dof),
-                score_dof,
-                refitted: refit,
-                likelihood_ratio: None,
-                likelihood_ratio_p: None,
-                aic: None,
-                bic: None,
-                fit_with: fitted.fit,
-            };
-            if !refit {
-                return Ok(Ranked {
-                    candidate,
-                    spec,
-                    fitted: None,
-                });
-            }
+        .map(|s| {
+            let Scored {
+                mut candidate,
+                spec,
+                augmented,
+            } = s;
             // The probe's contact width is the apparatus, not physics an
             // effect could explain: it stays at the current fit's value.
             let mut hold = vec![false; augmented.len()];
             hold[PROBE_WIDTH] = true;
-            let with = fit_model(context, &augmented, &fitted.params, &hold)?;
+            let with = fit_model(
+                context,
+                &augmented,
+                &fitted.params,
+                &hold,
+                CANDIDATE_TOLERANCE,
+            )?;
             let added = augmented.len() - current.len();
             let likelihood_ratio = (fitted.chi2 - with.chi2).max(0.0);
             let free = with.report.params.len() as f64;
+            candidate.refitted = true;
             candidate.likelihood_ratio = Some(likelihood_ratio);
             candidate.likelihood_ratio_p = Some(chi2_upper_tail(likelihood_ratio, added));
             candidate.aic = Some(with.chi2 + 2.0 * free);
@@ -269,11 +321,5 @@ pub(crate) fn rank_candidates(
                 fitted: Some(with),
             })
         })
-        .collect::<Result<Vec<_>, DiagnoseError>>()?;
-    out.sort_by(|a, b| {
-        let p = |r: &Ranked| r.candidate.likelihood_ratio_p.unwrap_or(f64::INFINITY);
-        p(a).total_cmp(&p(b))
-            .then(b.candidate.score.total_cmp(&a.candidate.score))
-    });
-    Ok(out)
+        .collect()
 }

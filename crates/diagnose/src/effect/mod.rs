@@ -4,8 +4,9 @@
 //! forward model through one of the hooks of [`Effect`] (all default to "no
 //! change"): the material field ([`Effect::stiffness_factor`]), the supports
 //! ([`Effect::supports`]), the needle load ([`Effect::shaft_density`]), the
-//! kinematics, plane or slab ([`Effect::slab_weight`]), or the measurement
-//! map ([`Effect::measured_position`]). Every effect has *null*
+//! kinematics, plane or slab ([`Effect::slab_weight`]), the constitutive
+//! law, linear or neo-Hookean ([`Effect::nonlinear_weight`]), or the
+//! measurement map ([`Effect::measured_position`]). Every effect has *null*
 //! parameter values at which it changes nothing: the score test of
 //! [`crate::rank`] evaluates the gradient there.
 //!
@@ -15,6 +16,7 @@
 mod compliant_support;
 mod layered_stiffness;
 mod lens_distortion;
+mod material_nonlinearity;
 mod material_stiffening;
 mod out_of_plane;
 mod platform_friction;
@@ -33,6 +35,7 @@ pub const CATALOG: &[fn() -> Box<dyn Effect>] = &[
     || Box::new(lens_distortion::LensDistortion),
     || Box::new(layered_stiffness::LayeredStiffness),
     || Box::new(out_of_plane::OutOfPlane),
+    || Box::new(material_nonlinearity::MaterialNonlinearity),
 ];
 
 /// Every effect of the catalog.
@@ -166,6 +169,14 @@ pub trait Effect: Send + Sync {
     /// Weight of the 3-D slab body in the predicted marker displacements
     /// (the kinematics; the plane body gets one minus the sum over effects).
     fn slab_weight(&self, parameters: &[f64]) -> f64 {
+        let _ = parameters;
+        0.0
+    }
+
+    /// Weight of the neo-Hookean terms of the displacement (the
+    /// constitutive law): the prediction is $u_1 + w\,(u_2 + u_3)$ with $w$
+    /// the sum over effects (see `material_nonlinearity`).
+    fn nonlinear_weight(&self, parameters: &[f64]) -> f64 {
         let _ = parameters;
         0.0
     }

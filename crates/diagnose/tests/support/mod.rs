@@ -8,6 +8,11 @@
 //! convergence (see `Truth::needle_state`), by point loads and Newton's
 //! method rather than the model's line loads and fixed rounds.
 //!
+//! A neo-Hookean truth (`Hidden::neo_hookean`) solves every probe hold and
+//! every needle placement to equilibrium with needle-fem's Newton solver,
+//! not to any order in the load (the model's `material_nonlinearity` is
+//! second order).
+//!
 //! The truth mesh has the refinement the tests give the model (2, to keep
 //! them fast; the slab of `Hidden::slab` the model's default slab
 //! refinement, 1, with two layers), so these tests check the statistics and
@@ -25,8 +30,9 @@ use needle_data::{
 };
 use needle_fem::load::{add_line_load, add_point_force};
 use needle_fem::{
-    Assembler, Dirichlet, ElementKind, Face, Formulation, LineDensity, LinearProblem, Locator,
-    MarkerGrid, Material, Materials, Mesh, RectangleMesh, SlabMesh, Support,
+    Assembler, Dirichlet, ElementKind, Face, Formulation, HyperelasticProblem, LineDensity,
+    LinearProblem, Locator, MarkerGrid, Material, Materials, Mesh, NonlinearOptions, RectangleMesh,
+    SlabMesh, Support,
 };
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -62,6 +68,9 @@ pub struct Hidden {
     /// Stiffness factor of a disc of radius `INCLUSION_RADIUS` around
     /// `INCLUSION_CENTRE` (an effect outside the catalog); 0 means none.
     pub inclusion: f64,
+    /// The material is compressible neo-Hookean with the same small-strain
+    /// E and nu, solved to equilibrium by Newton's method.
+    pub neo_hookean: bool,
 }
 
 /// Depth of the layer boundary of `Hidden::layer_contrast` (m).
@@ -109,6 +118,40 @@ fn top_face<const D: usize>(
             [d[0], d[1]]
         })
         .collect()
+}
+
+/// The truth's equilibrium on one day: linear, or neo-Hookean.
+struct Equilibrium<const D: usize> {
+    linear: LinearProblem<D>,
+    hyperelastic: Option<(HyperelasticProblem<D>, Materials)>,
+}
+
+impl<const D: usize> Equilibrium<D> {
+    /// Nodal displacements under nodal `load`; the neo-Hookean solve starts
+    /// from `start` when given (a nearby state), else from the linear
+    /// solution. It iterates with the factorised linear stiffness
+    /// (modified Newton, cheap near the answer) and falls back to Newton's
+    /// method if that does not converge; both stop at a relative residual
+    /// of 1e-10.
+    fn solve(&self, load: &[f64], start: Option<&[f64]>) -> Vec<f64> {
+        let linear = || self.linear.solve(load).unwrap().displacement;
+        match &self.hyperelastic {
+            None => linear(),
+            Some((problem, materials)) => {
+                let guess = start.map_or_else(linear, <[f64]>::to_vec);
+                let options = NonlinearOptions::default();
+                match problem.solve_modified_newton(materials, &[load], Some(&[&guess]), &options) {
+                    Ok(mut solved) => solved.remove(0).displacement,
+                    Err(_) => {
+                        problem
+                            .solve_newton(materials, load, Some(&guess), &options)
+                            .unwrap()
+                            .displacement
+                    }
+                }
+            }
+        }
+    }
 }
 
 struct Truth {
@@ -159,7 +202,7 @@ impl Truth {
         }
     }
 
-    fn problem<const D: usize>(&self, mesh: &Mesh<D>, day: f64) -> LinearProblem<D> {
+    fn problem<const D: usize>(&self, mesh: &Mesh<D>, day: f64) -> Equilibrium<D> {
         let formulation = if D == 2 {
             Formulation::PlaneStrain {
                 thickness: THICKNESS,
@@ -208,8 +251,18 @@ impl Truth {
                 Material::for_region(k, e * factor, POISSON).unwrap()
             })
             .collect();
-        problem.factorize(&Materials(materials)).unwrap();
-        problem
+        let materials = Materials(materials);
+        problem.factorize(&materials).unwrap();
+        let hyperelastic = self.hidden.neo_hookean.then(|| {
+            (
+                HyperelasticProblem::new(problem.clone()).unwrap(),
+                materials,
+            )
+        });
+        Equilibrium {
+            linear: problem,
+            hyperelastic,
+        }
     }
 
     /// In-plane displacement of every point of `points` (on the top face)
@@ -278,7 +331,7 @@ impl Truth {
                         return self.needle_state(&problem, &locator, x, depth, velocity, points);
                     }
                 }
-                let u = problem.solve(&load).unwrap().displacement;
+                let u = problem.solve(&load, None);
                 Response {
                     markers: top_face(&locator, &u, points),
                     entry: 0.0,
@@ -296,7 +349,7 @@ impl Truth {
     /// $(x_e, 0)$ satisfies $x_e + u_x = x$.
     fn needle_state<const D: usize>(
         &self,
-        problem: &LinearProblem<D>,
+        problem: &Equilibrium<D>,
         locator: &Locator<'_, D>,
         x: f64,
         depth: f64,
@@ -369,12 +422,15 @@ impl Truth {
                     entry,
                 };
             }
+            let first = placed.is_empty();
             placed = loads.iter().map(|l| l.0).collect();
             let mut load = vec![0.0; dofs];
             for (m, force) in loads {
                 add_point_force(locator, &mut load, lift(m, 0.0), lift([0.0, force], 0.0)).unwrap();
             }
-            u = problem.solve(&load).unwrap().displacement;
+            // Each placement is near the last: Newton starts there.
+            let start = (!first).then_some(u.as_slice());
+            u = problem.solve(&load, start);
         }
         panic!("the truth's needle placement did not converge at depth {depth}");
     }
