@@ -358,14 +358,7 @@ impl<const D: usize> Body<D> {
         {
             return Ok(scaled(r));
         }
-        let loads = [
-            self.unit_probe_load(locator, contact, width, 0)?,
-            self.unit_probe_load(locator, contact, width, 1)?,
-        ];
-        let solved = factorized
-            .entry
-            .problem
-            .displacements_many(&[&loads[0], &loads[1]])?;
+        let solved = self.unit_probe_solutions(locator, factorized, contact, width)?;
         let responses = [0, 1].map(|k| self.markers(&solved[k], 1.0));
         let out = scaled(&responses);
         probes
@@ -396,14 +389,7 @@ impl<const D: usize> Body<D> {
         {
             return Ok(series.scaled(factorized.scale));
         }
-        let loads = [
-            self.unit_probe_load(locator, contact, width, 0)?,
-            self.unit_probe_load(locator, contact, width, 1)?,
-        ];
-        let solved = factorized
-            .entry
-            .problem
-            .displacements_many(&[&loads[0], &loads[1]])?;
+        let solved = self.unit_probe_solutions(locator, factorized, contact, width)?;
         let (gx, gy) = (&solved[0], &solved[1]);
         let sum: Vec<f64> = gx.iter().zip(gy).map(|(a, b)| a + b).collect();
         let difference: Vec<f64> = gx.iter().zip(gy).map(|(a, b)| a - b).collect();
@@ -448,6 +434,25 @@ impl<const D: usize> Body<D> {
         }
         let built = HyperelasticAssembler::new(self.rigid.assembler().clone())?;
         Ok(self.hyperelastic.get_or_init(|| built))
+    }
+
+    /// Solutions (not divided by the factorisation's scale) under unit
+    /// probe forces along x and along y on the patch at `contact`.
+    fn unit_probe_solutions(
+        &self,
+        locator: &Locator<'_, D>,
+        factorized: &Factorized<D>,
+        contact: [f64; 2],
+        width: f64,
+    ) -> Result<Vec<Vec<f64>>, DiagnoseError> {
+        let loads = [
+            self.unit_probe_load(locator, contact, width, 0)?,
+            self.unit_probe_load(locator, contact, width, 1)?,
+        ];
+        Ok(factorized
+            .entry
+            .problem
+            .displacements_many(&[&loads[0], &loads[1]])?)
     }
 
     /// Load vector of a unit force along `axis` (0: x, 1: y) on the
