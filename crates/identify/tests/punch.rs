@@ -6,11 +6,13 @@
 //! bundles, as the pipeline does; the model shares no code with them and
 //! is meshed differently (no mesh lines on the probe edges).
 
-use needle_data::{LoadedBundle, read_bundle};
+mod probing;
+
 use needle_identify::{
     IdentifyOptions, MaterialFit, PlaneModel, ProbeLoad, ProbeModel, identify_material,
 };
-use needle_synth::{EffectId, Scenario, generate};
+use needle_synth::{EffectId, Scenario};
+use probing::{bundle_of, probing_only};
 
 const TRUE_MODULUS: f64 = 25.3e3;
 const TRUE_RATIO: f64 = 0.48;
@@ -19,33 +21,15 @@ const TRUE_WIDTH: f64 = 0.004;
 
 /// Probing alone (no needles, no compression test) with `markers` x
 /// `markers` markers at 4 µm noise: the plane-strain truth at `refinement`
-/// mesh lines per marker spacing, or the 3-D slab truth (`out_of_plane`)
-/// with `layers` Tet10 layers. With `exact_force` the force sensor has
-/// neither noise nor quantisation.
+/// mesh lines per marker spacing, or the 3-D slab truth (`out_of_plane`).
+/// With `exact_force` the force sensor has neither noise nor quantisation.
 fn truth(three_d: bool, markers: usize, refinement: usize, exact_force: bool) -> Scenario {
-    let mut s = if three_d {
+    let base = if three_d {
         Scenario::effect_alone(EffectId::OutOfPlane)
     } else {
         Scenario::null()
     };
-    s.name = "punch-probing".into();
-    s.phantom.markers = (markers, markers);
-    s.resolution.refinement = refinement;
-    s.compression = None;
-    s.needles.days.clear();
-    s.sensors.marker_sigma = 4e-6;
-    if exact_force {
-        s.sensors.force_sigma = 0.0;
-        s.sensors.force_resolution = 0.0;
-    }
-    s
-}
-
-fn bundle_of(scenario: &Scenario) -> LoadedBundle {
-    let dir = tempfile::tempdir().unwrap();
-    let (bundle, truth) = (dir.path().join("bundle"), dir.path().join("truth.ron"));
-    generate(scenario, &bundle, &truth, |_| {}).unwrap();
-    read_bundle(&bundle).unwrap()
+    probing_only(base, "punch-probing", markers, refinement, exact_force)
 }
 
 fn errors(fit: &MaterialFit) -> (f64, f64) {

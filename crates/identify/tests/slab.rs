@@ -8,9 +8,12 @@
 //! is written independently of the truth and meshed differently: no mesh
 //! lines on the probe edges, and another in-plane refinement.
 
-use needle_data::{LoadedBundle, read_bundle};
+mod probing;
+
+use needle_data::LoadedBundle;
 use needle_identify::{IdentifyOptions, MaterialFit, PlaneModel, identify_material};
-use needle_synth::{EffectId, Scenario, generate};
+use needle_synth::{EffectId, Scenario};
+use probing::{bundle_of, probing_only};
 
 const TRUE_MODULUS: f64 = 25.3e3;
 const TRUE_RATIO: f64 = 0.48;
@@ -21,26 +24,10 @@ const TRUE_RATIO: f64 = 0.48;
 /// layers. With `exact_force` the force sensor has neither noise nor
 /// quantisation (the model takes the force as exact).
 fn slab_truth(markers: usize, refinement: usize, layers: usize, exact_force: bool) -> Scenario {
-    let mut s = Scenario::effect_alone(EffectId::OutOfPlane);
-    s.name = "slab-probing".into();
-    s.phantom.markers = (markers, markers);
-    s.resolution.refinement = refinement;
-    s.resolution.layers = layers;
-    s.compression = None;
-    s.needles.days.clear();
-    s.sensors.marker_sigma = 4e-6;
-    if exact_force {
-        s.sensors.force_sigma = 0.0;
-        s.sensors.force_resolution = 0.0;
-    }
-    s
-}
-
-fn bundle_of(scenario: &Scenario) -> LoadedBundle {
-    let dir = tempfile::tempdir().unwrap();
-    let (bundle, truth) = (dir.path().join("bundle"), dir.path().join("truth.ron"));
-    generate(scenario, &bundle, &truth, |_| {}).unwrap();
-    read_bundle(&bundle).unwrap()
+    let base = Scenario::effect_alone(EffectId::OutOfPlane);
+    let mut scenario = probing_only(base, "slab-probing", markers, refinement, exact_force);
+    scenario.resolution.layers = layers;
+    scenario
 }
 
 fn fit(bundle: &LoadedBundle, plane: PlaneModel, refinement: usize, layers: usize) -> MaterialFit {
