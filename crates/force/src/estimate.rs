@@ -98,7 +98,9 @@ pub struct ShaftDistribution {
     pub lambda: f64,
     /// How it was chosen; [`LambdaChoice::DiscrepancyAtModelFloor`] and
     /// [`LambdaChoice::GcvAfterUnreachableDiscrepancy`] flag a model that
-    /// does not fit the data to the stated noise.
+    /// does not fit the data to the stated noise,
+    /// [`LambdaChoice::PooledNotExplained`] a tip-following profile that
+    /// does not explain this frame.
     pub choice: LambdaChoice,
     /// The tip zone of the smoothness prior the fit used
     /// ([`TipZone::UNIFORM`] when the evidence chose none).
@@ -115,7 +117,9 @@ impl ShaftDistribution {
     pub fn is_flagged(&self) -> bool {
         matches!(
             self.choice,
-            LambdaChoice::GcvAfterUnreachableDiscrepancy | LambdaChoice::DiscrepancyAtModelFloor
+            LambdaChoice::GcvAfterUnreachableDiscrepancy
+                | LambdaChoice::DiscrepancyAtModelFloor
+                | LambdaChoice::PooledNotExplained
         )
     }
 
@@ -206,6 +210,19 @@ impl ShaftEstimator {
         insertion: &Insertion,
         frame: &Frame,
     ) -> Result<ShaftDistribution, ForceError> {
+        let placed = self.estimate_placed(insertion, frame)?;
+        Ok(placed
+            .solved
+            .into_distribution(frame, &placed.placement, placed.change))
+    }
+
+    /// The estimate at one frame with where its load was placed: what the
+    /// tip-following estimator (`crate::follow`) builds on.
+    pub(crate) fn estimate_placed(
+        &self,
+        insertion: &Insertion,
+        frame: &Frame,
+    ) -> Result<Placed, ForceError> {
         let path = ShaftPath::from_frame(frame, &insertion.layout, &self.grid)?;
         let axis = self.response.axis();
         let turn = path.axis[0] * axis[1] - path.axis[1] * axis[0];
@@ -247,7 +264,56 @@ impl ShaftEstimator {
             placement = next;
             solved = self.solve_at(insertion, frame, &placement)?;
         }
-        Ok(solved.into_distribution(frame, &placement, change))
+        Ok(Placed {
+            solved,
+            placement,
+            needle,
+            change,
+        })
+    }
+
+    /// The marker data of `frame` and their weights $1/\sigma$: the row
+    /// `2k + c` of every tracked coordinate, its displacement and weight
+    /// (the per-row tracking sigma if the track has it, else the stated
+    /// noise, else 1: GCV does not depend on the scale).
+    pub(crate) fn weighted_data(
+        &self,
+        insertion: &Insertion,
+        frame: &Frame,
+    ) -> Result<WeightedData, ForceError> {
+        let stated = self.stated_sigma(insertion);
+        let mut data = WeightedData::default();
+        for (k, d) in frame.displacement.iter().enumerate() {
+            let Some(d) = d else { continue };
+            let row_sigma = frame.sigma.as_ref().and_then(|s| s[k]);
+            for c in 0..2 {
+                let sigma = row_sigma.map(|s| s[c]).or(stated).unwrap_or(1.0);
+                crate::error::positive("marker sigma", sigma)?;
+                data.rows.push(2 * k + c);
+                data.values.push(d[c]);
+                data.weights.push(1.0 / sigma);
+            }
+        }
+        Ok(data)
+    }
+
+    /// The marker noise the rule states, else the insertion's.
+    fn stated_sigma(&self, insertion: &Insertion) -> Option<f64> {
+        match self.options.regularisation {
+            Regularisation::Discrepancy { sigma }
+            | Regularisation::MarginalLikelihood { sigma } => Some(sigma),
+            _ => insertion.marker_sigma,
+        }
+    }
+
+    /// The smallest spacing of the marker grid (m).
+    pub fn marker_spacing(&self) -> f64 {
+        self.grid.spacing()
+    }
+
+    /// The options the estimator was built with.
+    pub fn options(&self) -> &EstimatorOptions {
+        &self.options
     }
 
     /// The regularised fit for the load placed by `placement`.
@@ -262,27 +328,12 @@ impl ShaftEstimator {
             .response
             .point_loads(&placement.load_points(), &basis)?;
         let g = self.response.marker_response(&loads);
-        // Whitening: per-row tracking sigma if the track has it, else the
-        // stated noise, else 1 (GCV does not depend on the scale).
-        let stated = match self.options.regularisation {
-            Regularisation::Discrepancy { sigma }
-            | Regularisation::MarginalLikelihood { sigma } => Some(sigma),
-            _ => insertion.marker_sigma,
-        };
-        let mut rows = Vec::new();
-        let mut data = Vec::new();
-        let mut weights = Vec::new();
-        for (k, d) in frame.displacement.iter().enumerate() {
-            let Some(d) = d else { continue };
-            let row_sigma = frame.sigma.as_ref().and_then(|s| s[k]);
-            for c in 0..2 {
-                let sigma = row_sigma.map(|s| s[c]).or(stated).unwrap_or(1.0);
-                crate::error::positive("marker sigma", sigma)?;
-                rows.push(2 * k + c);
-                data.push(d[c]);
-                weights.push(1.0 / sigma);
-            }
-        }
+        let stated = self.stated_sigma(insertion);
+        let WeightedData {
+            rows,
+            values: data,
+            weights,
+        } = self.weighted_data(insertion, frame)?;
         if rows.len() < basis.len() + 2 {
             return Err(ForceError::TooFewMarkers {
                 context: "shaft force distribution (tracked marker coordinates)",
@@ -331,6 +382,7 @@ impl ShaftEstimator {
             .sum();
         Ok(Solved {
             loads,
+            whitened_misfit: fit.residual_squared,
             density: fit.solution.iter().copied().collect(),
             density_sigma: (0..basis.len())
                 .map(|j| covariance[(j, j)].max(0.0).sqrt())
@@ -354,12 +406,32 @@ impl ShaftEstimator {
 /// ([`ShaftDistribution::placement_change`]).
 const PLACEMENT_ROUNDS: usize = 4;
 
+/// The marker data of one frame: rows `2k + c` of the tracked coordinates,
+/// their displacements (m) and weights $1/\sigma$.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct WeightedData {
+    pub rows: Vec<usize>,
+    pub values: Vec<f64>,
+    pub weights: Vec<f64>,
+}
+
+/// A frame's estimate with where its load acts.
+pub(crate) struct Placed {
+    pub solved: Solved,
+    pub placement: Placement,
+    pub needle: Needle,
+    /// The last re-placement's move (m).
+    pub change: f64,
+}
+
 /// One regularised fit, before it is tied to its frame.
-struct Solved {
+pub(crate) struct Solved {
     /// The load matrix $P$ of the placement (loaded dofs x stations).
-    loads: DMatrix<f64>,
+    pub loads: DMatrix<f64>,
     basis: ShaftBasis,
-    density: Vec<f64>,
+    pub density: Vec<f64>,
+    /// $|W(Gq - u)|^2$: the whitened misfit of the fit.
+    pub whitened_misfit: f64,
     density_sigma: Vec<f64>,
     integrated: f64,
     integrated_sigma: f64,
@@ -371,7 +443,7 @@ struct Solved {
 }
 
 impl Solved {
-    fn into_distribution(
+    pub(crate) fn into_distribution(
         self,
         frame: &Frame,
         placement: &Placement,

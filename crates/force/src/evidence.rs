@@ -70,6 +70,23 @@ impl Evidence {
         }
     }
 
+    /// From the normal-equation pieces of whitened data: $A^TA$, $A^Tb$,
+    /// $|b|^2$ and the number of data $m$ (data pooled from several frames
+    /// add up this way without forming the stacked $A$).
+    pub(crate) fn from_normal(
+        gram: DMatrix<f64>,
+        projected: DVector<f64>,
+        data_squared: f64,
+        data_count: usize,
+    ) -> Self {
+        Self {
+            gram,
+            projected,
+            data_squared,
+            data_count,
+        }
+    }
+
     /// The $\lambda$ of largest evidence for the prior $L$: a grid of
     /// [`STEPS_PER_DECADE`] per decade, refined by a parabola in
     /// $\log\lambda$ through the best point and its neighbours. `None` when

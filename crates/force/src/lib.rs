@@ -36,6 +36,14 @@
 //!   solved as the linear least-squares problem it is rather than by
 //!   gradient descent (Figs. 10b, 13). With [`Model::Plane`] it is the same
 //!   estimator on the plane model.
+//! - **The tip-following estimator** ([`fit_tip_following`],
+//!   [`tip_following_distributions`]): at a constant insertion velocity the
+//!   density is a steady profile $f(d)$ of the distance behind the tip,
+//!   $q_k(s) = f(L_k - s)$ at every frame; the tip moves past fixed markers,
+//!   so one profile fitted to the frames of one marker spacing of depth
+//!   (and of repeated insertions) resolves a tip peak below the marker
+//!   spacing. Its prior is chosen by the same marginal likelihood; frames
+//!   the steady profile does not explain are flagged ([`FrameCheck`]).
 //! - **Derived results**: the density behind the tip against velocity
 //!   ([`density_vs_velocity`], Fig. 14), layered phantoms through
 //!   [`MaterialField::LayersInY`] (Fig. 15), error metrics against a known
@@ -79,10 +87,12 @@
 mod error;
 mod estimate;
 mod evidence;
+mod follow;
 mod nodal;
 mod observe;
 mod place;
 mod plot;
+mod pool;
 mod regularise;
 mod respond;
 mod series;
@@ -95,12 +105,14 @@ pub use estimate::{
     EstimatorOptions, ShaftDistribution, ShaftEstimator, shaft_force_distribution,
     shaft_force_distributions,
 };
+pub use follow::{FollowOptions, FollowedFrame, FrameCheck, TipFollowing, fit_tip_following};
 pub use nodal::{MarkerMeshModel, PaperNodalForces, average_nodal_forces, paper_nodal_forces};
 pub use observe::{Frame, GridIndex, Insertion, MarkerLayout, observe_insertion};
 pub use plot::{
     ShaftCurve, plot_density_vs_velocity, plot_integrated_vs_base, plot_layered_distribution,
     plot_nodal_forces, plot_shaft_distributions,
 };
+pub use pool::{fit_explained_pool, tip_following_distributions};
 pub use regularise::{
     DISCREPANCY_SAFETY, LambdaChoice, Regularisation, RegularisedFit, solve_regularised,
 };

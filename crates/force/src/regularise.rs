@@ -69,6 +69,12 @@ pub enum LambdaChoice {
     Fixed,
     /// The marginal likelihood (the model reached the stated noise).
     MarginalLikelihood,
+    /// The marginal likelihood of a tip-following fit pooled over frames
+    /// (`crate::follow`) that does not explain this frame: the pooled fit
+    /// misses it by more than Morozov's margin beyond the frame's own fit
+    /// (the density is not steady behind the tip), or the pooled model is
+    /// short of the noise. Flagged.
+    PooledNotExplained,
 }
 
 /// Morozov's safety factor $\tau$: the residual is set to $\tau$ times the

@@ -475,12 +475,29 @@ impl ShaftResponse {
         points: &[LoadPoint],
         basis: &ShaftBasis,
     ) -> Result<DMatrix<f64>, ForceError> {
+        self.point_loads_of(points, basis.len(), basis.length(), |s| {
+            (0..basis.len()).map(|j| (j, basis.hat(j, s))).collect()
+        })
+    }
+
+    /// The load matrix (loaded dofs x `columns`) of axial point forces for
+    /// any basis: point `k` carries $w_k \sum_j \psi_j(s_k)\,c_j$, with
+    /// `shape(s)` the pairs $(j, \psi_j(s))$ at arc length $s$ from the
+    /// deformed entry (`length` only names the shaft in errors).
+    pub(crate) fn point_loads_of(
+        &self,
+        points: &[LoadPoint],
+        columns: usize,
+        length: f64,
+        shape: impl Fn(f64) -> Vec<(usize, f64)>,
+    ) -> Result<DMatrix<f64>, ForceError> {
         let locator = self.mesh.locator();
         let dimension = self.mesh.dimension();
-        let mut p = DMatrix::zeros(self.loaded.len(), basis.len());
+        let mut p = DMatrix::zeros(self.loaded.len(), columns);
         for point in points {
-            let hats: Vec<(usize, f64)> = (0..basis.len())
-                .map(|j| (j, basis.hat(j, point.s) * point.weight))
+            let hats: Vec<(usize, f64)> = shape(point.s)
+                .into_iter()
+                .map(|(j, h)| (j, h * point.weight))
                 .filter(|h| h.1 != 0.0)
                 .collect();
             for (node, w) in locator.weights(point.at)? {
@@ -488,7 +505,7 @@ impl ShaftResponse {
                     let slot = self.loaded_slot[node * dimension + c];
                     if slot == usize::MAX {
                         return Err(ForceError::BadShaft {
-                            length: basis.length(),
+                            length,
                             reason: "the loaded material line left the band around the needle line the model was prepared for",
                         });
                     }

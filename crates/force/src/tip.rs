@@ -89,7 +89,7 @@ impl TipZone {
 
 impl TipPrior {
     /// The zones this prior tries, the uniform prior first.
-    fn candidates(&self) -> Result<Vec<TipZone>, ForceError> {
+    pub(crate) fn candidates(&self) -> Result<Vec<TipZone>, ForceError> {
         Ok(match *self {
             Self::Uniform => vec![TipZone::UNIFORM],
             Self::Fixed { zone, relaxation } => {

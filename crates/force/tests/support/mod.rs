@@ -136,6 +136,16 @@ impl Truth {
     /// placed by [`PLACEMENT_ROUNDS`] rounds of solve and re-place; the
     /// markers read on the top face; the base force the load's integral.
     pub fn frame(&self, q0: f64, tip: f64, t: f64) -> Frame {
+        self.frame_with(
+            &|d: f64| q0 * (1.0 + (1.0 - (d - 2e-3).abs() / 3e-3).max(0.0)),
+            tip,
+            t,
+        )
+    }
+
+    /// As [`Truth::frame`] with the density `profile(d)` (N/m) at distance
+    /// `d` behind the tip.
+    pub fn frame_with(&self, profile: &dyn Fn(f64) -> f64, tip: f64, t: f64) -> Frame {
         let mesh = self.problem.mesh();
         let locator = Locator::new(mesh);
         let x0 = self.needle_x;
@@ -155,7 +165,7 @@ impl Truth {
             // (symmetric phantom: x stays on the line), in by u_y there.
             let entry = field([x0, 0.0])[1];
             let length = tip - entry;
-            let density = truth_density(q0, length);
+            let density = |s: f64| profile(length - s);
             let pieces = (length / 0.25e-3).ceil() as usize;
             let h = length / pieces as f64;
             let mut loads = vec![0.0; mesh.dof_count()];
