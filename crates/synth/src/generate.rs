@@ -5,21 +5,21 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use needle_data::{
-    BundleBuilder, CompressionPoint, Face, MarkerRest, Noise, Phantom, ToolSample, Trial,
-    TrialKind, WriteOptions,
+    BundleBuilder, CompressionPoint, Face, MarkerRest, Noise, Phantom, TrialKind, WriteOptions,
 };
 use rayon::prelude::*;
 
 use crate::camera::TrueCamera;
 use crate::effect::material_nonlinearity::uniaxial_nominal_stress;
 use crate::error::SynthError;
-use crate::frames::{Staging, render_trial_frames, selected_frames, write_calibration};
+use crate::frames::{Staging, write_calibration};
 use crate::needle::{NeedleRun, insert};
 use crate::probe::{ProbeRun, press};
+use crate::record::{Recorded, Recorder, Source};
 use crate::scenario::Scenario;
-use crate::sensor::{Instruments, bracket, sample_times, stated_force_sigma};
+use crate::sensor::{Instruments, stated_force_sigma};
 use crate::strain::peak_strain;
-use crate::truth::{Discretisation, GroundTruth, TrialTruth};
+use crate::truth::{Discretisation, GroundTruth};
 use crate::world::World;
 
 /// What a generation did.
@@ -35,7 +35,8 @@ pub struct Summary {
     pub frames: usize,
     /// Degrees of freedom of the truth.
     pub dofs: usize,
-    /// Linear (or Newton) solves of the needle insertions.
+    /// Right-hand sides back-substituted for the needle insertions (kept
+    /// columns and full solves), or Newton solves on a nonlinear phantom.
     pub needle_solves: usize,
     /// Wall time of the whole generation (s).
     pub seconds: f64,
@@ -55,15 +56,16 @@ pub enum Stage {
         /// All.
         total: usize,
     },
-    /// Needle insertions, `done` days of `total` (all days advance
-    /// together, so this is reported once, when they are all done).
+    /// Needle insertions, `done` days of `total` (the insertions run in
+    /// parallel, so this is reported once, when they are all done; the
+    /// probe trials and their frames are recorded meanwhile).
     Needles {
         /// Finished days.
         done: usize,
         /// All days.
         total: usize,
     },
-    /// Writing the bundle and the truth.
+    /// Recording the needle trials, writing the bundle and the truth.
     Write,
 }
 
@@ -89,8 +91,8 @@ pub fn generate(
     progress(Stage::Mesh);
     let world = World::new(scenario)?;
     let probes = run_probes(&world, &progress)?;
-    let (needles, needle_solves) = run_needles(&world, &progress)?;
-    progress(Stage::Write);
+    let probe_days: Vec<f64> = probes.iter().map(|r| r.probe.day).collect();
+    let needle_days: Vec<f64> = needle_plans(scenario).iter().map(|p| p.day).collect();
     let p = &scenario.phantom;
     let s = &scenario.sensors;
     let mut builder = BundleBuilder::new(
@@ -151,8 +153,6 @@ pub fn generate(
             .collect();
         builder.compression(curve);
     }
-    let mut truths = Vec::new();
-    let (mut marker_rows, mut tool_rows, mut frame_count) = (0, 0, 0);
     // Frames and calibration images are rendered here first; the bundle
     // writer copies them.
     let staging = match &scenario.frames {
@@ -160,64 +160,68 @@ pub fn generate(
         None => None,
     };
     let camera = TrueCamera::new(scenario);
+    let recorder = Recorder {
+        world: &world,
+        camera: &camera,
+        staging: staging.as_ref(),
+    };
+    let order = campaign_order(&probe_days, &needle_days);
+    let jobs = |kind: TrialKind| -> Vec<(usize, usize, usize)> {
+        order
+            .iter()
+            .enumerate()
+            .filter(|(_, o)| o.0 == kind)
+            .enumerate()
+            .map(|(rank, (stream, o))| (stream, o.1, rank))
+            .collect()
+    };
+    // The calibration images and the probe trials (their frames above all)
+    // are recorded on the second core while the needles are solved.
+    let (needles, early) = rayon::join(
+        || run_needles(&world, &progress),
+        || -> Result<_, SynthError> {
+            let calibration = match (&scenario.frames, &staging) {
+                (Some(frames), Some(staging)) => {
+                    let dir = staging.path().join(needle_data::layout::CALIBRATION);
+                    Some((write_calibration(scenario, frames, &camera, &dir)?, dir))
+                }
+                _ => None,
+            };
+            let trials = jobs(TrialKind::Probe)
+                .par_iter()
+                .map(|&(stream, i, rank)| {
+                    recorder.record(stream, rank, Source::Probe(&probes[i], i))
+                })
+                .collect::<Result<Vec<_>, _>>()?;
+            Ok((calibration, trials))
+        },
+    );
+    let (needles, needle_solves) = needles?;
+    let (calibration, probe_trials) = early?;
+    progress(Stage::Write);
+    let needle_trials = jobs(TrialKind::Needle)
+        .par_iter()
+        .map(|&(stream, i, rank)| recorder.record(stream, rank, Source::Needle(&needles[i], i)))
+        .collect::<Result<Vec<_>, _>>()?;
     let mut camera_truth = None;
-    if let (Some(frames), Some(staging)) = (&scenario.frames, &staging) {
-        let dir = staging.path().join(needle_data::layout::CALIBRATION);
-        camera_truth = Some(write_calibration(scenario, frames, &camera, &dir)?);
+    if let Some((truth, dir)) = calibration {
+        camera_truth = Some(truth);
         builder.calibration_dir(dir);
     }
-    let order = campaign_order(&probes, &needles);
-    let mut seen = [0, 0];
-    for (stream, &(kind, i)) in order.iter().enumerate() {
-        let mut instruments = Instruments::new(*s, scenario.seed, stream as u64);
-        let (mut trial, truth) = if kind == TrialKind::Probe {
-            probe_trial(&world, &probes[i], i, &mut instruments)
-        } else {
-            needle_trial(&world, &needles[i], i, &mut instruments)
-        };
-        let k = usize::from(kind == TrialKind::Needle);
-        seen[k] += 1;
-        if let (Some(frames), Some(staging)) = (&scenario.frames, &staging) {
-            let selection = [frames.probes, frames.needles][k];
-            if seen[k] <= selection.count {
-                let (grid, table, velocity, end) = if kind == TrialKind::Probe {
-                    let r = &probes[i];
-                    (
-                        &r.indentations,
-                        &r.markers,
-                        r.probe.velocity,
-                        r.probe.indentation,
-                    )
-                } else {
-                    let r = &needles[i];
-                    (
-                        &r.depths,
-                        &r.markers,
-                        r.plan.velocity,
-                        scenario.needles.depth,
-                    )
-                };
-                let times = sample_times(s.camera_rate, end / velocity);
-                let numbers = selected_frames(times.len(), selection.every);
-                let dir = staging.path().join(&trial.trial.id);
-                render_trial_frames(
-                    &camera,
-                    &frames.render_options(),
-                    scenario.seed,
-                    stream as u64,
-                    &numbers,
-                    |number| {
-                        let (j, w) = bracket(grid, (velocity * times[number as usize]).min(end));
-                        positions_at(&world, table, j, w).collect()
-                    },
-                    &dir,
-                    &mut trial,
-                )?;
-                frame_count += numbers.len();
-            }
-        }
+    let mut truths = Vec::new();
+    let (mut marker_rows, mut tool_rows, mut frame_count) = (0, 0, 0);
+    let mut recorded: Vec<Recorded> = probe_trials.into_iter().chain(needle_trials).collect();
+    recorded.sort_by_key(|r| r.stream);
+    for Recorded {
+        trial,
+        truth,
+        frames,
+        ..
+    } in recorded
+    {
         marker_rows += trial.markers.as_ref().map_or(0, |m| m.row_count());
         tool_rows += trial.tool.len();
+        frame_count += frames;
         let slot = builder.trial(trial.trial.clone());
         *slot = trial;
         truths.push(truth);
@@ -277,7 +281,9 @@ pub fn respond(scenario: &Scenario) -> Result<Vec<TrialResponse>, SynthError> {
     let world = World::new(scenario)?;
     let probes = run_probes(&world, &|_| {})?;
     let (needles, _) = run_needles(&world, &|_| {})?;
-    Ok(campaign_order(&probes, &needles)
+    let probe_days: Vec<f64> = probes.iter().map(|r| r.probe.day).collect();
+    let needle_days: Vec<f64> = needles.iter().map(|r| r.plan.day).collect();
+    Ok(campaign_order(&probe_days, &needle_days)
         .into_iter()
         .map(|(kind, i)| match kind {
             TrialKind::Probe => {
@@ -314,15 +320,16 @@ fn in_plane(table: &[Vec<[f64; 3]>]) -> Vec<Vec<[f64; 2]>> {
         .collect()
 }
 
-/// Campaign order: by day, probes before needles on the same day; each
-/// entry is the kind and the index in its list.
-fn campaign_order(probes: &[ProbeRun], needles: &[NeedleRun]) -> Vec<(TrialKind, usize)> {
-    let mut order: Vec<(f64, usize, usize)> = probes
+/// Campaign order of probes and needles on the days `probe_days` and
+/// `needle_days`: by day, probes before needles on the same day; each entry
+/// is the kind and the index in its list.
+fn campaign_order(probe_days: &[f64], needle_days: &[f64]) -> Vec<(TrialKind, usize)> {
+    let mut order: Vec<(f64, usize, usize)> = probe_days
         .iter()
         .enumerate()
-        .map(|(i, r)| (r.probe.day, 0, i))
+        .map(|(i, &day)| (day, 0, i))
         .collect();
-    order.extend(needles.iter().enumerate().map(|(i, r)| (r.plan.day, 1, i)));
+    order.extend(needle_days.iter().enumerate().map(|(i, &day)| (day, 1, i)));
     order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
     order
         .into_iter()
@@ -339,11 +346,11 @@ fn campaign_order(probes: &[ProbeRun], needles: &[NeedleRun]) -> Vec<(TrialKind,
         .collect()
 }
 
-fn probe_id(index: usize) -> String {
+pub(crate) fn probe_id(index: usize) -> String {
     format!("probe-{:02}", index + 1)
 }
 
-fn needle_id(index: usize, plan: &crate::scenario::NeedlePlan) -> String {
+pub(crate) fn needle_id(index: usize, plan: &crate::scenario::NeedlePlan) -> String {
     format!(
         "needle-{:02}-v{}",
         index + 1,
@@ -409,21 +416,26 @@ fn run_probes(
         .collect()
 }
 
+/// The needle trials in the order they are solved and listed: by day.
+fn needle_plans(scenario: &Scenario) -> Vec<crate::scenario::NeedlePlan> {
+    let mut plans = scenario.needles.plan();
+    plans.sort_by(|a, b| a.day.total_cmp(&b.day));
+    plans
+}
+
 fn run_needles(
     world: &World,
     progress: &(impl Fn(Stage) + Sync),
 ) -> Result<(Vec<NeedleRun>, usize), SynthError> {
     let scenario = world.scenario;
-    let mut plans = scenario.needles.plan();
-    plans.sort_by(|a, b| a.day.total_cmp(&b.day));
+    let plans = needle_plans(scenario);
     let mut days: Vec<f64> = plans.iter().map(|p| p.day).collect();
     days.dedup();
     let responses = days
         .iter()
         .map(|&day| world.response(day))
         .collect::<Result<Vec<_>, _>>()?;
-    // Every trial advances together, so that days sharing a factorisation
-    // share each back-substitution.
+    // Days sharing a factorisation share the response (see `World`).
     let trials: Vec<_> = plans
         .iter()
         .map(|plan| {
@@ -443,166 +455,4 @@ fn run_needles(
     });
     let solves = runs.iter().map(|r| r.solves).sum();
     Ok((runs, solves))
-}
-
-/// Interpolated marker positions (rest + displacement) between states:
-/// x, y on the top face and the lift z out of it.
-fn positions_at<'a>(
-    world: &'a World,
-    table: &'a [Vec<[f64; 3]>],
-    i: usize,
-    w: f64,
-) -> impl Iterator<Item = [f64; 3]> + 'a {
-    let (a, b) = (&table[i], &table[(i + 1).min(table.len() - 1)]);
-    world
-        .markers
-        .iter()
-        .zip(a.iter().zip(b))
-        .map(move |(m, (a, b))| {
-            [
-                m[0] + (1.0 - w) * a[0] + w * b[0],
-                m[1] + (1.0 - w) * a[1] + w * b[1],
-                (1.0 - w) * a[2] + w * b[2],
-            ]
-        })
-}
-
-fn lerp(table: &[f64], i: usize, w: f64) -> f64 {
-    (1.0 - w) * table[i] + w * table[(i + 1).min(table.len() - 1)]
-}
-
-/// Writes the markers of one trial: camera frames at `times`, each at the
-/// state coordinate `coordinate(t)` on `grid`.
-fn track(
-    world: &World,
-    grid: &[f64],
-    table: &[Vec<[f64; 3]>],
-    times: &[f64],
-    coordinate: impl Fn(f64) -> f64,
-    instruments: &mut Instruments,
-    trial: &mut needle_data::TrialData,
-) {
-    let lens = world.scenario.effects.lens_distortion;
-    let markers = trial.markers_mut();
-    for (frame, &t) in times.iter().enumerate() {
-        let (i, w) = bracket(grid, coordinate(t));
-        let rows: Vec<(u32, [f64; 2])> = positions_at(world, table, i, w)
-            .enumerate()
-            .map(|(id, p)| {
-                let p = [p[0], p[1]];
-                let seen = lens.map_or(p, |l| l.distort(p));
-                (id as u32, instruments.marker(seen))
-            })
-            .collect();
-        markers
-            .push_frame(frame as u64, t, rows)
-            .expect("rows without sigma throughout");
-    }
-}
-
-fn probe_trial(
-    world: &World,
-    run: &ProbeRun,
-    index: usize,
-    instruments: &mut Instruments,
-) -> (needle_data::TrialData, TrialTruth) {
-    let s = &world.scenario.sensors;
-    let probe = &run.probe;
-    let id = probe_id(index);
-    let mut trial = needle_data::TrialData::new(Trial {
-        id: id.clone(),
-        kind: TrialKind::Probe,
-        velocity: probe.velocity,
-        day: probe.day,
-    });
-    let duration = probe.indentation / probe.velocity;
-    let indentation = |t: f64| (probe.velocity * t).min(probe.indentation);
-    for t in sample_times(s.force_rate, duration) {
-        let (i, w) = bracket(&run.indentations, indentation(t));
-        trial.tool.push(ToolSample {
-            t,
-            tip_x: probe.x,
-            tip_y: indentation(t),
-            theta: 0.0,
-            fx: instruments.force(0.0),
-            fy: instruments.force(lerp(&run.force, i, w)),
-            mz: lerp(&run.moment, i, w),
-        });
-    }
-    let frames = sample_times(s.camera_rate, duration);
-    track(
-        world,
-        &run.indentations,
-        &run.markers,
-        &frames,
-        indentation,
-        instruments,
-        &mut trial,
-    );
-    let truth = TrialTruth {
-        id,
-        day: probe.day,
-        youngs_moduli: world.moduli(probe.day),
-        x: probe.x,
-        shaft_density: None,
-        final_entry: None,
-        final_tip_material: None,
-        final_force: *run.force.last().expect("at least the rest state"),
-        peak_strain: peak_strain(&world.body, &run.last_displacement),
-    };
-    (trial, truth)
-}
-
-fn needle_trial(
-    world: &World,
-    run: &NeedleRun,
-    index: usize,
-    instruments: &mut Instruments,
-) -> (needle_data::TrialData, TrialTruth) {
-    let s = &world.scenario.sensors;
-    let plan = &run.plan;
-    let id = needle_id(index, plan);
-    let mut trial = needle_data::TrialData::new(Trial {
-        id: id.clone(),
-        kind: TrialKind::Needle,
-        velocity: plan.velocity,
-        day: plan.day,
-    });
-    let depth = world.scenario.needles.depth;
-    let duration = depth / plan.velocity;
-    let tip = |t: f64| (plan.velocity * t).min(depth);
-    for t in sample_times(s.force_rate, duration) {
-        let (i, w) = bracket(&run.depths, tip(t));
-        trial.tool.push(ToolSample {
-            t,
-            tip_x: plan.line,
-            tip_y: tip(t),
-            theta: 0.0,
-            fx: instruments.force(0.0),
-            fy: instruments.force(lerp(&run.force, i, w)),
-            mz: 0.0,
-        });
-    }
-    let frames = sample_times(s.camera_rate, duration);
-    track(
-        world,
-        &run.depths,
-        &run.markers,
-        &frames,
-        tip,
-        instruments,
-        &mut trial,
-    );
-    let truth = TrialTruth {
-        id,
-        day: plan.day,
-        youngs_moduli: world.moduli(plan.day),
-        x: plan.line,
-        shaft_density: Some(run.load.density),
-        final_entry: run.entry.last().copied(),
-        final_tip_material: Some(run.tip_material),
-        final_force: *run.force.last().expect("at least the rest state"),
-        peak_strain: peak_strain(&world.body, &run.last_displacement),
-    };
-    (trial, truth)
 }

@@ -27,9 +27,10 @@
 //! - A linear truth factorises $K$ once for every day whose moduli are a
 //!   uniform multiple of the day-0 moduli (stiffening over days scales the
 //!   solution by $1/c$), and every state is a back-substitution; probes
-//!   hold their face by Lagrange multipliers on that same factorisation,
-//!   and all needle trials advance together, one back-substitution with
-//!   several right-hand sides per iteration.
+//!   hold their face by Lagrange multipliers on that same factorisation;
+//!   a needle insertion keeps the columns of $K^{-1}$ for the dofs its
+//!   line loads, so that its consistency iterations need no
+//!   back-substitution ([`needle`]), and the insertions run in parallel.
 //! - Needle shaft loads act at the material points whose deformed images
 //!   lie on the needle ([`needle`]); the tool force is their integral.
 //! - Measurements: force sensor noise and quantisation, Gaussian marker
@@ -41,7 +42,7 @@
 //! # Entry points
 //!
 //! [`load_scenario`], [`Scenario::paper_default`], [`Scenario::quick`],
-//! [`generate`].
+//! [`generate()`].
 
 pub mod camera;
 pub mod effect;
@@ -54,8 +55,10 @@ pub mod sensor;
 pub mod truth;
 
 mod body;
+mod line_response;
 mod presets;
 mod probe;
+mod record;
 mod shaft;
 mod strain;
 mod system;

@@ -19,18 +19,21 @@
 //!
 //! States are solved on a uniform grid of tip depths; the first guess of
 //! each is the displacement extrapolated linearly from the two previous
-//! states, so that one or two solves usually suffice. All trials advance
-//! together: those whose days share a factorisation (see [`World`]) are
-//! solved as one back-substitution with several right-hand sides, and the
-//! placements of the trials are computed in parallel.
+//! states. The trials are independent and run in parallel. On a linear
+//! phantom an iteration does not back-substitute: the load of one line
+//! only reaches the dofs around it, and the kept columns of $K^{-1}$ for
+//! those dofs (`line_response.rs`) give the field there and at the markers
+//! exactly; a full solve is made only for the whole field of the last
+//! state, or when a state leaves the band of kept rows.
 
 use rayon::prelude::*;
 
-use crate::body::{Body, invert3};
+use crate::body::{Body, Location, invert3};
 use crate::error::SynthError;
+use crate::line_response::{LineResponse, Missing};
 use crate::scenario::NeedlePlan;
 use crate::shaft::ShaftLoad;
-use crate::world::{Response, World, solve_each};
+use crate::world::{Response, World};
 
 /// Largest allowed move of a loaded material point between the last two
 /// iterations of a state (m): 0.1 µm, far below any marker noise.
@@ -59,76 +62,173 @@ pub(crate) struct NeedleRun {
     pub tip_material: [f64; 3],
     /// Displacement field of the last state.
     pub last_displacement: Vec<f64>,
-    /// Linear solves (or Newton solves) done.
+    /// Linear solves (or Newton solves) done: kept columns and full
+    /// solves.
     pub solves: usize,
+    /// Of those, solves of a whole load (the last state's field, states
+    /// that left the band, every iteration of a nonlinear phantom).
+    pub full_solves: usize,
 }
 
-/// One trial while it is being advanced.
-struct Advance {
-    run: NeedleRun,
-    previous: Vec<Vec<f64>>,
+/// How the states of one insertion are solved.
+enum Solver<'a> {
+    /// A linear phantom: the kept columns of its line, with the response
+    /// for the states that leave their band.
+    Columns(LineResponse, &'a Response),
+    /// Every iteration a full solve (a nonlinear phantom, or on request).
+    Full(&'a Response),
+}
+
+/// A solved field of one consistency iteration.
+struct Solved {
+    /// The displacement: exact on the band's elements at least.
+    u: Vec<f64>,
+    /// Marker displacements.
+    markers: Vec<[f64; 3]>,
+}
+
+impl Solver<'_> {
+    fn response(&self) -> &Response {
+        match self {
+            Solver::Columns(_, r) | Solver::Full(r) => r,
+        }
+    }
+
+    /// Solves the load of `placed` (starting from `start` if nonlinear) and
+    /// places the shaft again with the result; from the kept columns
+    /// (adding the ones the load needs) when both the load and the new
+    /// placement stay in the band, otherwise by a full solve, counted in
+    /// `solves`.
+    #[allow(clippy::too_many_arguments)]
+    fn solve_and_place(
+        &mut self,
+        world: &World,
+        run: &NeedleRun,
+        tip: f64,
+        placed: &Placement,
+        start: &[f64],
+        shaft_step: f64,
+        solves: &mut usize,
+    ) -> Result<(Solved, Placement), SynthError> {
+        let body = &world.body;
+        let f = placed.loads(body);
+        if let Solver::Columns(line, response) = self {
+            let mut answer = line.solve(&f);
+            if let Err(Missing::Columns(dofs)) = &answer {
+                line.add_columns(world, response, dofs)?;
+                answer = line.solve(&f);
+            }
+            if let Ok((u, markers)) = answer {
+                let next = place(body, run, tip, &u, shaft_step);
+                if next.elements().all(|e| line.covers(e)) {
+                    return Ok((Solved { u, markers }, next));
+                }
+            }
+        }
+        *solves += 1;
+        let u = self
+            .response()
+            .solve(body, &[f], &[start.to_vec()])?
+            .pop()
+            .expect("one load gives one solution");
+        let next = place(body, run, tip, &u, shaft_step);
+        let markers = world.marker_displacements(&u);
+        Ok((Solved { u, markers }, next))
+    }
 }
 
 /// Simulates the insertions `trials`, each a plan and the response of the
-/// phantom on its day, to `depth` in states `step` apart.
+/// phantom on its day, to `depth` in states `step` apart. The trials are
+/// independent and run in parallel; a linear phantom's states are solved
+/// from kept columns of $K^{-1}$ ([`LineResponse`]).
 pub(crate) fn insert(
     world: &World,
     trials: &[(NeedlePlan, &Response)],
     depth: f64,
     step: f64,
 ) -> Result<Vec<NeedleRun>, SynthError> {
-    let responses: Vec<&Response> = trials.iter().map(|t| t.1).collect();
+    // Rows on the elements within an element of the line: near the entry
+    // the loaded points move up to about a millimetre sideways.
+    let band = Band {
+        margin: world.body.element_size,
+        depth,
+    };
+    insert_with(world, trials, depth, step, Some(band))
+}
+
+/// The band of elements around a needle line whose rows are kept.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Band {
+    /// How far beyond the line it reaches (m).
+    pub margin: f64,
+    /// Depth of the segment of the line it covers (m).
+    pub depth: f64,
+}
+
+/// [`insert`] with the kept rows on `band`, or with a full solve in every
+/// iteration when `band` is `None`.
+pub(crate) fn insert_with(
+    world: &World,
+    trials: &[(NeedlePlan, &Response)],
+    depth: f64,
+    step: f64,
+    band: Option<Band>,
+) -> Result<Vec<NeedleRun>, SynthError> {
+    trials
+        .par_iter()
+        .map(|&(plan, response)| {
+            let line = match band {
+                Some(b) => LineResponse::new(world, response, plan.line, b.depth, b.margin)?,
+                None => None,
+            };
+            let solver = match line {
+                Some(line) => Solver::Columns(line, response),
+                None => Solver::Full(response),
+            };
+            insert_one(world, plan, solver, depth, step)
+        })
+        .collect()
+}
+
+/// One insertion, state by state.
+fn insert_one(
+    world: &World,
+    plan: NeedlePlan,
+    mut solver: Solver,
+    depth: f64,
+    step: f64,
+) -> Result<NeedleRun, SynthError> {
     let body = &world.body;
     let dofs = body.dof_count();
     let states = (depth / step).ceil().max(1.0) as usize;
     let shaft_step = world.scenario.resolution.shaft_step;
-    let mut trials: Vec<Advance> = trials
-        .iter()
-        .map(|(plan, _)| {
-            let load = ShaftLoad::of(world.scenario, plan);
-            let mut run = NeedleRun {
-                plan: *plan,
-                load,
-                depths: vec![0.0],
-                markers: vec![vec![[0.0; 3]; world.markers.len()]],
-                entry: vec![0.0],
-                force: vec![0.0],
-                tip_material: [plan.line, 0.0, 0.0],
-                last_displacement: vec![0.0; dofs],
-                solves: 0,
-            };
-            run.depths.reserve(states);
-            Advance {
-                run,
-                previous: vec![vec![0.0; dofs]],
-            }
-        })
-        .collect();
+    let mut run = NeedleRun {
+        plan,
+        load: ShaftLoad::of(world.scenario, &plan),
+        depths: vec![0.0],
+        markers: vec![vec![[0.0; 3]; world.markers.len()]],
+        entry: vec![0.0],
+        force: vec![0.0],
+        tip_material: [plan.line, 0.0, 0.0],
+        last_displacement: vec![0.0; dofs],
+        solves: 0,
+        full_solves: 0,
+    };
+    let mut solves = 0;
+    let mut previous: Vec<Vec<f64>> = vec![vec![0.0; dofs]];
     for k in 1..=states {
         let tip = depth * k as f64 / states as f64;
-        // Guesses: the displacement extrapolated from the last two states.
-        let mut guesses: Vec<Vec<f64>> = trials
-            .iter()
-            .map(|t| match t.previous.as_slice() {
-                [.., a, b] => a.iter().zip(b).map(|(a, b)| 2.0 * b - a).collect(),
-                [.., b] => b.clone(),
-                [] => vec![0.0; dofs],
-            })
-            .collect();
-        let mut placed: Vec<Placement> = trials
-            .par_iter()
-            .zip(&guesses)
-            .map(|(t, u)| place(body, &t.run, tip, u, shaft_step))
-            .collect();
-        let mut done = vec![false; trials.len()];
-        let mut mixing: Vec<Mixing> = trials.iter().map(|_| Mixing::default()).collect();
-        let mut solutions: Vec<Vec<f64>> = vec![Vec::new(); trials.len()];
+        // The guess: the displacement extrapolated from the last two states.
+        let mut guess: Vec<f64> = match previous.as_slice() {
+            [.., a, b] => a.iter().zip(b).map(|(a, b)| 2.0 * b - a).collect(),
+            [.., b] => b.clone(),
+            [] => vec![0.0; dofs],
+        };
+        let mut placed = place(body, &run, tip, &guess, shaft_step);
+        let mut mixing = Mixing::default();
         let mut largest_move = f64::INFINITY;
-        for iteration in 0.. {
-            let active: Vec<usize> = (0..trials.len()).filter(|&i| !done[i]).collect();
-            if active.is_empty() {
-                break;
-            }
+        let mut iteration = 0;
+        let solved = loop {
             if iteration == MAX_CONSISTENCY_ITERATIONS {
                 return Err(SynthError::NoConvergence {
                     what: format!("the needle tip consistency iteration at depth {tip} m"),
@@ -136,62 +236,58 @@ pub(crate) fn insert(
                     iterations: iteration,
                 });
             }
-            let loads: Vec<Vec<f64>> = active
-                .par_iter()
-                .map(|&i| placed[i].loads(body, dofs))
-                .collect();
-            let jobs: Vec<(&Response, &[f64], &[f64])> = active
-                .iter()
-                .zip(&loads)
-                .map(|(&i, f)| (responses[i], f.as_slice(), guesses[i].as_slice()))
-                .collect();
-            let solved = solve_each(body, &jobs)?;
-            let nexts: Vec<Placement> = active
-                .par_iter()
-                .zip(&solved)
-                .map(|(&i, u)| place(body, &trials[i].run, tip, u, shaft_step))
-                .collect();
-            largest_move = 0.0;
-            let mut moving = Vec::new();
-            for ((&i, u), next) in active.iter().zip(solved).zip(nexts) {
-                trials[i].run.solves += 1;
-                let moved = next.moved_from(&placed[i]);
-                largest_move = largest_move.max(moved);
-                if moved < CONSISTENCY_TOLERANCE {
-                    // Keep the placement that was applied, so that u
-                    // answers exactly the recorded load.
-                    done[i] = true;
-                    solutions[i] = u;
-                } else {
-                    let applied = std::mem::take(&mut guesses[i]);
-                    guesses[i] = mixing[i].next(applied, u);
-                    moving.push(i);
+            iteration += 1;
+            let (solved, next) = solver.solve_and_place(
+                world,
+                &run,
+                tip,
+                &placed,
+                &guess,
+                shaft_step,
+                &mut solves,
+            )?;
+            largest_move = next.moved_from(&placed);
+            if largest_move < CONSISTENCY_TOLERANCE {
+                // Keep the placement that was applied, so that the field
+                // answers exactly the recorded load.
+                break solved;
+            }
+            guess = mixing.next(std::mem::take(&mut guess), solved.u);
+            placed = place(body, &run, tip, &guess, shaft_step);
+        };
+        run.depths.push(tip);
+        run.markers.push(solved.markers);
+        run.entry.push(placed.entry);
+        run.force.push(placed.force());
+        if k == states {
+            // The whole field of the last state, for strains and the tip.
+            let u = match solver {
+                Solver::Columns(..) => {
+                    solves += 1;
+                    solver
+                        .response()
+                        .solve(body, &[placed.loads(body)], &[])?
+                        .pop()
+                        .expect("one load gives one solution")
                 }
-            }
-            let replaced: Vec<Placement> = moving
-                .par_iter()
-                .map(|&i| place(body, &trials[i].run, tip, &guesses[i], shaft_step))
-                .collect();
-            for (&i, p) in moving.iter().zip(replaced) {
-                placed[i] = p;
-            }
+                Solver::Full(_) => solved.u.clone(),
+            };
+            run.tip_material = material_point(body, [plan.line, tip, 0.0], &u);
+            run.last_displacement = u;
         }
-        for ((t, u), p) in trials.iter_mut().zip(solutions).zip(&placed) {
-            t.run.depths.push(tip);
-            t.run.markers.push(world.marker_displacements(&u));
-            t.run.entry.push(p.entry);
-            t.run.force.push(p.force());
-            if k == states {
-                t.run.tip_material = material_point(body, [t.run.plan.line, tip, 0.0], &u);
-                t.run.last_displacement = u.clone();
-            }
-            if t.previous.len() == 2 {
-                t.previous.remove(0);
-            }
-            t.previous.push(u);
+        if previous.len() == 2 {
+            previous.remove(0);
         }
+        previous.push(solved.u);
     }
-    Ok(trials.into_iter().map(|t| t.run).collect())
+    // Every kept column was one back-substitution.
+    run.full_solves = solves;
+    run.solves = solves
+        + match &solver {
+            Solver::Columns(line, _) => line.columns,
+            Solver::Full(_) => 0,
+        };
+    Ok(run)
 }
 
 /// Anderson mixing of depth one for the consistency iteration of one state
@@ -202,7 +298,9 @@ pub(crate) fn insert(
 /// $r_k = T(v_k) - v_k$, the next field
 /// $$v_{k+1} = T(v_k) - \gamma\,(T(v_k) - T(v_{k-1})),\qquad
 /// \gamma = \frac{r_k\cdot(r_k - r_{k-1})}{\lVert r_k - r_{k-1}\rVert^2},$$
-/// removes the slowest mode. It only chooses where the loads go next: a
+/// removes the slowest mode. (From kept columns the fields are the band's
+/// rows, zero elsewhere, so the products run over the band.) It only
+/// chooses where the loads go next: a
 /// state is accepted, as without mixing, when the placement of its solution
 /// differs from the applied one by less than [`CONSISTENCY_TOLERANCE`].
 #[derive(Default)]
@@ -238,7 +336,9 @@ impl Mixing {
 /// The loaded material points of one state for one displacement field.
 struct Placement {
     entry: f64,
-    points: Vec<([f64; 3], f64)>,
+    /// Element holding the entry's material point.
+    entry_element: usize,
+    points: Vec<([f64; 3], f64, Location)>,
 }
 
 impl Placement {
@@ -246,15 +346,17 @@ impl Placement {
         self.points.iter().map(|p| p.1).sum()
     }
 
-    fn loads(&self, body: &Body, dofs: usize) -> Vec<f64> {
-        let mut f = vec![0.0; dofs];
-        for &(x, force) in &self.points {
-            let at = body
-                .locate(x)
-                .expect("material points are kept inside the body");
-            body.add_point_force(&at, [0.0, force, 0.0], &mut f);
+    fn loads(&self, body: &Body) -> Vec<f64> {
+        let mut f = vec![0.0; body.dof_count()];
+        for (_, force, at) in &self.points {
+            body.add_point_force(at, [0.0, *force, 0.0], &mut f);
         }
         f
+    }
+
+    /// Every element the placement read the displacement on.
+    fn elements(&self) -> impl Iterator<Item = usize> + '_ {
+        std::iter::once(self.entry_element).chain(self.points.iter().map(|p| p.2.element))
     }
 
     /// Largest move of a material point (or of the entry) between two
@@ -284,15 +386,29 @@ fn place(body: &Body, run: &NeedleRun, tip: f64, u: &[f64], shaft_step: f64) -> 
             break;
         }
     }
-    let entry = displacement(body, x_entry, u)[1];
+    clamp_inside(body, &mut x_entry);
+    let at = body
+        .locate(x_entry)
+        .expect("points are clamped into the body");
+    let entry = body.value(&at, u)[1];
     let segments = (tip / shaft_step).ceil().max(1.0) as usize;
     let points = run
         .load
         .points(entry, tip, segments)
         .into_iter()
-        .map(|p| (material_point(body, [line, p.y, 0.0], u), p.force))
+        .map(|p| {
+            let x = material_point(body, [line, p.y, 0.0], u);
+            let located = body
+                .locate(x)
+                .expect("material points are kept inside the body");
+            (x, p.force, located)
+        })
         .collect();
-    Placement { entry, points }
+    Placement {
+        entry,
+        entry_element: at.element,
+        points,
+    }
 }
 
 /// The material point $X$ with $X + u(X) = p$, by Newton's method on
@@ -328,16 +444,6 @@ fn material_point(body: &Body, p: [f64; 3], u: &[f64]) -> [f64; 3] {
     }
     clamp_inside(body, &mut x);
     x
-}
-
-/// The displacement at a point of the body.
-fn displacement(body: &Body, x: [f64; 3], u: &[f64]) -> [f64; 3] {
-    let mut inside = x;
-    clamp_inside(body, &mut inside);
-    let at = body
-        .locate(inside)
-        .expect("points are clamped into the body");
-    body.value(&at, u)
 }
 
 /// Moves a point onto the body if it lies (by rounding) just outside.

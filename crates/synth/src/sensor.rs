@@ -80,7 +80,7 @@ pub fn sample_times(rate: f64, duration: f64) -> Vec<f64> {
 }
 
 /// Index and weight to interpolate a table on the increasing `grid` at
-/// `x`: value = (1 - w) * table[i] + w * table[i + 1].
+/// `x`: value = (1 - w) * table\[i\] + w * table\[i + 1\].
 pub fn bracket(grid: &[f64], x: f64) -> (usize, f64) {
     if grid.len() < 2 {
         return (0, 0.0);

@@ -4,7 +4,8 @@
 use crate::effect::MaterialStiffening;
 use crate::effect::material_nonlinearity::{NeoHookean, uniaxial_nominal_stress};
 use crate::effect::{CompliantSupport, Effects, LayeredStiffness, OutOfPlane, TipCuttingForce};
-use crate::needle::{CONSISTENCY_TOLERANCE, insert};
+use crate::line_response::{LineResponse, Missing};
+use crate::needle::{Band, CONSISTENCY_TOLERANCE, NeedleRun, insert, insert_with};
 use crate::probe::press;
 use crate::scenario::{NeedlePlan, Scenario};
 use crate::system::{Factorised, Stiffness};
@@ -443,4 +444,118 @@ fn libm_erf(x: f64) -> f64 {
         term *= -x * x / (n + 1) as f64;
     }
     2.0 / std::f64::consts::PI.sqrt() * sum
+}
+
+#[test]
+fn kept_columns_give_the_full_solve_on_the_band_and_at_the_markers() {
+    for s in plane_and_slab() {
+        let world = World::new(&s).unwrap();
+        let response = world.response(3.0).unwrap();
+        let body = &world.body;
+        let line = plan(&s).line;
+        let mut columns = LineResponse::new(&world, &response, line, 0.02, 1e-3)
+            .unwrap()
+            .unwrap();
+        // Point loads along +y just off the line, in the mid-plane.
+        let mut f = vec![0.0; body.dof_count()];
+        for (k, y) in [0.001, 0.0072, 0.013, 0.0195].into_iter().enumerate() {
+            let at = body.locate([line + 2e-5 * k as f64, y, 0.0]).unwrap();
+            body.add_point_force(&at, [0.0, 0.1 + 0.05 * k as f64, 0.0], &mut f);
+        }
+        // The first columns are the nodes on the line; the loads just off
+        // it ask for the columns of their side.
+        let Err(Missing::Columns(missing)) = columns.solve(&f) else {
+            panic!("loads off the line need more columns")
+        };
+        columns.add_columns(&world, &response, &missing).unwrap();
+        let (u, markers) = columns.solve(&f).expect("the loads lie in the band");
+        let full = response
+            .solve(body, &[f.clone()], &[])
+            .unwrap()
+            .pop()
+            .unwrap();
+        let scale = full.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let mut compared = 0;
+        for e in (0..body.element_count()).filter(|&e| columns.covers(e)) {
+            for &n in body.element(e) {
+                for c in 0..body.dim {
+                    let d = n * body.dim + c;
+                    assert!((u[d] - full[d]).abs() < 1e-12 * scale, "dof {d}");
+                    compared += 1;
+                }
+            }
+        }
+        assert!(compared > 0);
+        for (m, exact) in markers.iter().zip(world.marker_displacements(&full)) {
+            for c in 0..3 {
+                assert!(
+                    (m[c] - exact[c]).abs() < 1e-12 * scale,
+                    "{m:?} vs {exact:?}"
+                );
+            }
+        }
+        // A load off the band has no column: the caller must solve it.
+        let mut off = vec![0.0; body.dof_count()];
+        let at = body.locate([line + 0.01, 0.01, 0.0]).unwrap();
+        body.add_point_force(&at, [0.0, 0.1, 0.0], &mut off);
+        assert!(matches!(columns.solve(&off), Err(Missing::Band)));
+    }
+}
+
+/// Largest difference of the marker displacements and of the forces of
+/// two runs of the same insertion.
+fn run_gap(a: &NeedleRun, b: &NeedleRun) -> (f64, f64) {
+    assert_eq!(a.depths, b.depths);
+    let mut markers = 0.0f64;
+    for (sa, sb) in a.markers.iter().zip(&b.markers) {
+        for (ma, mb) in sa.iter().zip(sb) {
+            for c in 0..3 {
+                markers = markers.max((ma[c] - mb[c]).abs());
+            }
+        }
+    }
+    let force = largest_gap(&a.force, &b.force);
+    (markers, force)
+}
+
+#[test]
+fn insertion_from_kept_columns_equals_full_solves_with_and_without_fallback() {
+    for s in plane_and_slab() {
+        let world = World::new(&s).unwrap();
+        let response = world.response(0.0).unwrap();
+        let trials = [(plan(&s), &response)];
+        let (depth, step) = (s.needles.depth, s.resolution.depth_step);
+        let full = &insert_with(&world, &trials, depth, step, None).unwrap()[0];
+        let columns = &insert(&world, &trials, depth, step).unwrap()[0];
+        // The band covers only the first elements of the insertion: the
+        // later states fall back to full solves.
+        let short = Band {
+            margin: 1e-3 * world.body.element_size,
+            depth: 0.2 * depth,
+        };
+        let mixed = &insert_with(&world, &trials, depth, step, Some(short)).unwrap()[0];
+        assert!(
+            mixed.full_solves > columns.full_solves,
+            "the fallback was taken"
+        );
+        let density = columns.load.density;
+        for run in [columns, mixed] {
+            // The two agree within what the consistency tolerance allows:
+            // no material point is off by more than it, so no marker and
+            // no load position either.
+            let (markers, force) = run_gap(run, full);
+            assert!(
+                markers < CONSISTENCY_TOLERANCE,
+                "markers off by {markers} m"
+            );
+            assert!(
+                force < 2.0 * density * CONSISTENCY_TOLERANCE,
+                "force off by {force} N"
+            );
+            assert!(
+                largest_gap(&run.last_displacement, &full.last_displacement)
+                    < CONSISTENCY_TOLERANCE
+            );
+        }
+    }
 }

@@ -210,6 +210,11 @@ pub(crate) enum Response {
 }
 
 impl Response {
+    /// Whether the response is linear (a factorisation: loads superpose).
+    pub fn is_linear(&self) -> bool {
+        matches!(self, Response::Linear { .. })
+    }
+
     /// Displacements for several load vectors (entries on held components
     /// are ignored; they stay at zero); `start` are initial guesses for the
     /// nonlinear solve (ignored by the linear one).
@@ -246,7 +251,7 @@ impl Response {
 /// responses share a factorisation are solved together, as one
 /// back-substitution with several right-hand sides, and each solution is
 /// divided by its own response's scale.
-pub(crate) fn solve_each(
+fn solve_each(
     body: &Body,
     jobs: &[(&Response, &[f64], &[f64])],
 ) -> Result<Vec<Vec<f64>>, SynthError> {
