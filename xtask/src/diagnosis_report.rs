@@ -134,8 +134,36 @@ pub fn add_sections(report: &mut Report, run: &DiagnosisRun, number: &str) -> Re
         &["parameter", "value", "95% interval", "meaning"],
         &parameters,
     );
+    let trials: Vec<Vec<String>> = run
+        .trials
+        .iter()
+        .map(|t| {
+            let or_dash = |v: f64, text: String| if v.is_finite() { text } else { "-".into() };
+            vec![
+                t.trial.clone(),
+                or_dash(t.rms_marker, format!("{:.2}", t.rms_marker * 1e6)),
+                or_dash(t.chi2_marker, format!("{:.3}", t.chi2_marker)),
+                or_dash(t.rms_force, format!("{:.2}", t.rms_force * 1e3)),
+                or_dash(t.chi2_force, format!("{:.3}", t.chi2_force)),
+            ]
+        })
+        .collect();
+    report.table(
+        &format!(
+            "{number}d Misfit per trial (mean square of the whitened residuals: about 1 \
+             where only the noise is left)"
+        ),
+        &[
+            "trial",
+            "rms marker (um)",
+            "chi2 per value, marker",
+            "rms force (mN)",
+            "chi2 per value, force",
+        ],
+        &trials,
+    );
     report.section(
-        &format!("{number}d Where the final model fails"),
+        &format!("{number}e Where the final model fails"),
         &format!(
             "Residual (model minus data) of the final model: the RMS per marker over all \
              frames (colour), with the residual vectors of the worst frame (arrows); then \

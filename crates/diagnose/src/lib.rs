@@ -80,9 +80,14 @@
 //! - `MissingEffect(id)`: the significant candidate with the largest
 //!   $\Lambda$ (the one that explains most of the residual), provided it
 //!   explains at least a fraction `min_explained` (default 0.2) of the
-//!   excess misfit, $\Lambda \ge f\,(\chi^2 - \nu)$: a candidate that
-//!   soaks up only a sliver of a large structured residual (a stiff
-//!   inclusion partly mimicked by a per-trial effect) is not named.
+//!   misfit, $\Lambda \ge f \sum_c \max(\chi^2_c - \nu_c,\, z\sqrt{2\nu_c})$
+//!   over the channels $c$ ($z$ = `chi2_spread`): a candidate that soaks
+//!   up only a sliver of a large structured residual (a stiff inclusion
+//!   partly mimicked by a per-trial effect) is not named, nor is one that
+//!   explains a sliver of what the noise's own spread could hide (the
+//!   model's small inexactness: its mesh, its idealised probe contact). A
+//!   channel below its noise (a generous stated sigma) does not offset
+//!   another's excess.
 //! - `ConsistentWithNoise`: no candidate significant, and every channel has
 //!   $\chi^2/\nu \le 1 + z\sqrt{2/\nu}$ ($z$ = `chi2_spread`, default 3).
 //! - `Unexplained`: no candidate named but some channel misfits beyond
@@ -91,8 +96,9 @@
 //!
 //! ## What it does not do
 //!
-//! No hyperelastic material (`material_nonlinearity`) on the model side
-//! yet; compression trials are ignored; the needle's bending moment and
+//! `material_nonlinearity` is a third-order series about the linear
+//! solution, not a Newton solve, and always from the plane mesh;
+//! compression trials are ignored; the needle's bending moment and
 //! lateral forces are not modelled; the probe force is taken as measured
 //! (its noise enters the covariance, not the parameters).
 
@@ -117,7 +123,7 @@ pub use chi2::{chi2_upper_quantile, chi2_upper_tail};
 pub use concentrate::{energy_share_of_worst, residual_concentration};
 pub use diagnose::{
     Diagnosis, DiagnosisRun, FittedModel, FittedParameter, ForceResidual, Ladder, LadderRow,
-    MarkerResidual, NoiseSource, Verdict, diagnose,
+    MarkerResidual, NoiseSource, TrialMisfit, Verdict, diagnose,
 };
 pub use error::DiagnoseError;
 pub use fit::Fit;

@@ -81,10 +81,11 @@ pub struct DiagnoseOptions {
     /// (Bonferroni).
     pub significance: f64,
     /// The leading candidate is named only if its likelihood ratio is at
-    /// least this fraction of the excess misfit $\chi^2 - \nu$ of the
-    /// current fit: an effect that only soaks up a little of a large
-    /// structured residual is not what is missing (the residual is then
-    /// `Unexplained`).
+    /// least this fraction of the current fit's unexplained misfit (per
+    /// channel the excess $\chi^2 - \nu$, at least the noise's spread
+    /// `chi2_spread` $\sqrt{2\nu}$): an effect that only soaks up a
+    /// little of a large structured residual is not what is missing (the
+    /// residual is then `Unexplained`).
     pub min_explained: f64,
     /// A channel's chi-square per dof is consistent with 1 when within this
     /// many sampling standard deviations `sqrt(2/dof)`.

@@ -2,7 +2,8 @@
 //! parameters with 95 % intervals), `residuals_markers.csv` and
 //! `residuals_forces.csv` (one row per residual with every variable it can
 //! be plotted against: time, tip depth, velocity, day, position, distance
-//! from the tool, radius from the image centre).
+//! from the tool, radius from the image centre), and `residuals_trials.csv`
+//! (the misfit of every trial).
 
 use std::path::Path;
 
@@ -138,5 +139,33 @@ pub fn write_outputs(run: &DiagnosisRun, out_dir: &Path) -> Result<(), DiagnoseE
         &out_dir.join("residuals_forces.csv"),
         &["trial", "t", "tip_depth", "velocity", "day", "rx", "ry"],
         forces,
+    )?;
+    let trials = run
+        .trials
+        .iter()
+        .map(|t| {
+            vec![
+                t.trial.clone(),
+                t.marker_values.to_string(),
+                t.rms_marker.to_string(),
+                t.chi2_marker.to_string(),
+                t.force_values.to_string(),
+                t.rms_force.to_string(),
+                t.chi2_force.to_string(),
+            ]
+        })
+        .collect();
+    csv_file(
+        &out_dir.join("residuals_trials.csv"),
+        &[
+            "trial",
+            "marker_values",
+            "rms_marker",
+            "chi2_marker",
+            "force_values",
+            "rms_force",
+            "chi2_force",
+        ],
+        trials,
     )
 }

@@ -11,8 +11,11 @@
 //! $p$ and, by Richardson extrapolation, the error of each level. The
 //! test asserts that the default resolution is within a tenth of the
 //! marker noise, and prints the tables that `docs/truth-world.md` quotes.
+//! A third test compares the plane-strain truth of
+//! `fixtures/scenarios/null.ron` (one probe, one insertion) with the same
+//! at twice its refinement.
 
-use needle_synth::{EffectId, Effects, Scenario, respond};
+use needle_synth::{EffectId, Effects, Scenario, load_scenario, respond};
 
 fn slab(refinement: usize, layers: usize, depth_step: f64) -> Scenario {
     let mut s = Scenario::null();
@@ -147,4 +150,72 @@ fn interpolation_between_states_is_below_a_tenth_of_the_marker_noise() {
         error / sigma
     );
     assert!(error < 0.1 * sigma);
+}
+
+/// The null plane-strain truth of `fixtures/scenarios/null.ron` (the truth
+/// that hides every effect but `out_of_plane`) with its in-plane
+/// refinement multiplied by `factor`: its first probe and one 1 mm/s
+/// insertion to 50 mm.
+fn plane(factor: usize) -> Scenario {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../fixtures/scenarios/null.ron"
+    );
+    let mut s = load_scenario(path).unwrap();
+    s.probes.truncate(1);
+    s.needles.velocities = vec![0.001];
+    s.needles.days = vec![2.0];
+    s.resolution.refinement *= factor;
+    s.resolution.depth_step = 0.005;
+    s
+}
+
+/// Largest and rms vector difference of the final marker displacements,
+/// and the worst marker's column and row.
+fn compare(a: &[[f64; 2]], b: &[[f64; 2]], columns: usize) -> (f64, f64, usize, usize) {
+    let d: Vec<f64> = a
+        .iter()
+        .zip(b)
+        .map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1]))
+        .collect();
+    let (worst, largest) =
+        d.iter().enumerate().fold(
+            (0, 0.0f64),
+            |best, (k, &v)| if v > best.1 { (k, v) } else { best },
+        );
+    let rms = (d.iter().map(|v| v * v).sum::<f64>() / d.len() as f64).sqrt();
+    (largest, rms, worst % columns, worst / columns)
+}
+
+#[test]
+#[ignore = "a minute: mesh convergence of the plane-strain truth"]
+fn plane_truth_discretisation_error_is_below_a_tenth_of_the_marker_noise() {
+    let default = plane(1);
+    let sigma = default.sensors.marker_sigma;
+    let columns = default.phantom.markers.0;
+    let coarse = respond(&default).unwrap();
+    let fine = respond(&plane(2)).unwrap();
+    println!(
+        "refinement {} against {} (um): largest / rms, worst marker column and row",
+        default.resolution.refinement,
+        2 * default.resolution.refinement
+    );
+    let mut largest = 0.0f64;
+    for (trial, (a, b)) in coarse.iter().zip(&fine).enumerate() {
+        let (max, rms, column, row) = compare(
+            a.markers.last().unwrap(),
+            b.markers.last().unwrap(),
+            columns,
+        );
+        println!(
+            "trial {trial}: {:.2} / {:.2}, column {column} row {row}",
+            max * 1e6,
+            rms * 1e6
+        );
+        largest = largest.max(max);
+    }
+    assert!(
+        largest < 0.1 * sigma,
+        "plane truth: {largest} m between refinements against sigma {sigma} m"
+    );
 }

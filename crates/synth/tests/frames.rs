@@ -22,6 +22,7 @@ fn small() -> Scenario {
     let mut s = Scenario::null();
     s.name = "small-frames".into();
     s.phantom.markers = (6, 6);
+    s.resolution.refinement = 1;
     s.resolution.depth_step = 0.005;
     s.resolution.shaft_step = 0.002;
     s.sensors.marker_sigma = 0.0;
