@@ -414,10 +414,10 @@ fn initial_shaft_density(obs: &Observations) -> f64 {
 /// mesh, its idealised probe contact): an effect explaining only a sliver
 /// of that spread may be mimicking it, however small its p-value under
 /// an exact model.
-fn unexplained_misfit(fitted: &Fitted, chi2_spread: f64) -> f64 {
-    [fitted.fit.chi2_marker, fitted.fit.chi2_force]
+fn unexplained_misfit(fit: &Fit, dof: [f64; 2], chi2_spread: f64) -> f64 {
+    [fit.chi2_marker, fit.chi2_force]
         .iter()
-        .zip(fitted.dof)
+        .zip(dof)
         .filter(|(per_dof, _)| per_dof.is_finite())
         .map(|(per_dof, dof)| ((per_dof - 1.0) * dof).max(chi2_spread * (2.0 * dof).sqrt()))
         .sum()
@@ -426,7 +426,7 @@ fn unexplained_misfit(fitted: &Fitted, chi2_spread: f64) -> f64 {
 /// The verdict rules (see the crate documentation).
 fn verdict(ranked: &[Ranked], fitted: &Fitted, options: &DiagnoseOptions) -> (Verdict, f64) {
     let threshold_p = options.significance / ranked.len().max(1) as f64;
-    let unexplained = unexplained_misfit(fitted, options.chi2_spread);
+    let unexplained = unexplained_misfit(&fitted.fit, fitted.dof, options.chi2_spread);
     let leader = ranked
         .iter()
         .filter_map(|r| {
@@ -605,6 +605,27 @@ mod tests {
             probe_width: 0.002,
         };
         Model::new(&spec, &geometry, start).unwrap()
+    }
+
+    #[test]
+    fn a_channel_below_its_noise_does_not_offset_another_s_excess() {
+        let fit = |marker: f64, force: f64| Fit {
+            rms_marker: 1e-5,
+            rms_force: 1e-2,
+            chi2_marker: marker,
+            chi2_force: force,
+        };
+        let dof = [20_000.0, 5_000.0];
+        // Spread 3 sqrt(2 dof): 600 and 300.
+        let floor = 600.0 + 300.0;
+        // Markers 2000 beyond their dof, force 500 below: 2000 + 300, not 1500.
+        let misfit = unexplained_misfit(&fit(1.1, 0.9), dof, 3.0);
+        assert!((misfit - 2300.0).abs() < 1e-6, "{misfit}");
+        // Both channels at the noise: the noise's own spread.
+        assert!((unexplained_misfit(&fit(1.0, 1.0), dof, 3.0) - floor).abs() < 1e-6);
+        // A channel without data counts for nothing.
+        let markers_only = unexplained_misfit(&fit(1.5, f64::NAN), dof, 3.0);
+        assert!((markers_only - 10_000.0).abs() < 1e-6, "{markers_only}");
     }
 
     #[test]
