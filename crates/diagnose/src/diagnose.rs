@@ -585,27 +585,7 @@ fn force_residuals(context: &Context, fitted: &Fitted) -> Vec<ForceResidual> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::effect::Geometry;
-
-    fn model(effects: &[&str]) -> Model {
-        let spec = ModelSpec {
-            effects: effects.iter().map(|e| e.to_string()).collect(),
-        };
-        let geometry = Geometry {
-            width: 0.075,
-            depth: 0.075,
-            thickness: 0.0075,
-            image_centre: [0.0375, 0.0375],
-            image_radius: 0.05,
-        };
-        let start = Baseline {
-            youngs_modulus: 25e3,
-            poisson_ratio: 0.45,
-            shaft_density: 10.0,
-            probe_width: 0.002,
-        };
-        Model::new(&spec, &geometry, start).unwrap()
-    }
+    use crate::model::test_model as model;
 
     #[test]
     fn a_channel_below_its_noise_does_not_offset_another_s_excess() {

@@ -150,3 +150,25 @@ impl Model {
             .collect()
     }
 }
+
+/// A model of `effects` on the default phantom's geometry, for unit tests.
+#[cfg(test)]
+pub(crate) fn test_model(effects: &[&str]) -> Model {
+    let spec = ModelSpec {
+        effects: effects.iter().map(|e| e.to_string()).collect(),
+    };
+    let geometry = Geometry {
+        width: 0.075,
+        depth: 0.075,
+        thickness: 0.0075,
+        image_centre: [0.0375, 0.0375],
+        image_radius: 0.05,
+    };
+    let start = Baseline {
+        youngs_modulus: 25e3,
+        poisson_ratio: 0.45,
+        shaft_density: 10.0,
+        probe_width: 0.002,
+    };
+    Model::new(&spec, &geometry, start).unwrap()
+}

@@ -361,30 +361,16 @@ fn refit_all(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::effect::Geometry;
-    use crate::model::Baseline;
+    use crate::model::test_model;
 
     #[test]
     fn a_null_on_a_bound_starts_just_inside_it() {
-        let geometry = Geometry {
-            width: 0.075,
-            depth: 0.075,
-            thickness: 0.0075,
-            image_centre: [0.0375, 0.0375],
-            image_radius: 0.05,
-        };
-        let start = Baseline {
-            youngs_modulus: 25e3,
-            poisson_ratio: 0.45,
-            shaft_density: 10.0,
-            probe_width: 0.002,
-        };
         let current = [25e3, 0.45, 10.0, 0.002];
         for (id, inside) in [
             ("out_of_plane", true),
             ("velocity_dependent_friction", false),
         ] {
-            let model = Model::new(&ModelSpec::baseline().with(id), &geometry, start).unwrap();
+            let model = test_model(&[id]);
             let p = &model.parameters[current.len()];
             let at = near_null_start(&model, &current);
             assert_eq!(&at[..current.len()], &current);

@@ -91,6 +91,20 @@ fn estimators(sigma: f64) -> [(&'static str, EstimatorOptions); 2] {
     ]
 }
 
+/// The truth's material on the day of the campaign's first insertion.
+fn true_material(scenario: &Scenario) -> needle_fem::material::Material {
+    let day = scenario.needles.days[0];
+    let stiffening = scenario
+        .effects
+        .material_stiffening
+        .map_or(1.0, |s| s.factor(day));
+    needle_fem::material::Material::new(
+        scenario.phantom.youngs_modulus * stiffening,
+        scenario.phantom.poisson_ratio,
+    )
+    .unwrap()
+}
+
 /// Estimates every 30th frame past 5 mm (about 1 mm of depth apart at
 /// 3 mm/s) with each of [`estimators`] and prints the tables of
 /// `docs/force-inversion.md`: per estimator the largest |error| past
@@ -282,16 +296,7 @@ fn slab_correction_with_the_true_material_and_exact_sensors() {
         scenario.sensors.force_resolution = 0.0;
         let dir = tempfile::tempdir().unwrap();
         let bundle = generated(&scenario, &dir);
-        let day = scenario.needles.days[0];
-        let stiffening = scenario
-            .effects
-            .material_stiffening
-            .map_or(1.0, |s| s.factor(day));
-        let material = needle_fem::material::Material::new(
-            scenario.phantom.youngs_modulus * stiffening,
-            scenario.phantom.poisson_ratio,
-        )
-        .unwrap();
+        let material = true_material(&scenario);
         println!("marker noise {marker_sigma:e} m, exact base force, true E and nu:");
         measure(
             &scenario,
@@ -316,16 +321,7 @@ fn the_4_um_figures_over_other_noise_draws() {
         scenario.sensors.force_resolution = 0.0;
         let dir = tempfile::tempdir().unwrap();
         let bundle = generated(&scenario, &dir);
-        let day = scenario.needles.days[0];
-        let stiffening = scenario
-            .effects
-            .material_stiffening
-            .map_or(1.0, |s| s.factor(day));
-        let material = needle_fem::material::Material::new(
-            scenario.phantom.youngs_modulus * stiffening,
-            scenario.phantom.poisson_ratio,
-        )
-        .unwrap();
+        let material = true_material(&scenario);
         println!(
             "seed {}: marker noise 4 um, exact base force, true E and nu:",
             scenario.seed
