@@ -121,14 +121,7 @@ fn measure(scenario: &Scenario, bundle: &LoadedBundle, field: &MaterialField, si
         .id
         .clone();
     let insertion = observe_insertion(bundle, &needle).unwrap();
-    let mut thinned = insertion.clone();
-    thinned.frames = insertion
-        .frames
-        .iter()
-        .filter(|f| f.tip[1] > 5e-3)
-        .step_by(30)
-        .cloned()
-        .collect();
+    let thinned = every_nth_frame_past_5_mm(&insertion, 30);
     let truth = truth_density(scenario);
     for (name, options) in estimators(sigma) {
         println!("{name}:");
@@ -136,6 +129,19 @@ fn measure(scenario: &Scenario, bundle: &LoadedBundle, field: &MaterialField, si
         summarise(bundle, &needle, &distributions, &truth);
     }
     tip_following(bundle, &needle, &insertion, field, sigma, &truth);
+}
+
+/// Every `n`th camera frame of `insertion` with the tip past 5 mm.
+fn every_nth_frame_past_5_mm(insertion: &Insertion, n: usize) -> Insertion {
+    let mut thinned = insertion.clone();
+    thinned.frames = insertion
+        .frames
+        .iter()
+        .filter(|f| f.tip[1] > 5e-3)
+        .step_by(n)
+        .cloned()
+        .collect();
+    thinned
 }
 
 /// The tip-following estimator at the same frames: every 5th camera frame
@@ -152,14 +158,7 @@ fn tip_following(
     sigma: f64,
     truth: &impl Fn(f64) -> f64,
 ) {
-    let mut dense = insertion.clone();
-    dense.frames = insertion
-        .frames
-        .iter()
-        .filter(|f| f.tip[1] > 5e-3)
-        .step_by(5)
-        .cloned()
-        .collect();
+    let dense = every_nth_frame_past_5_mm(insertion, 5);
     let options = EstimatorOptions::slab(Regularisation::MarginalLikelihood { sigma });
     let shown: Vec<f64> = dense.frames.iter().step_by(6).map(|f| f.t).collect();
     // The same candidates from 10 mm of tip depth on.
