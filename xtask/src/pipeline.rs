@@ -81,16 +81,36 @@ pub fn run(args: &PipelineArgs) -> Result<(), String> {
         None if args.quick => Scenario::quick(),
         None => Scenario::paper_default(),
     };
-    let truth = synthesise(&scenario, &folder, &mut report)?;
-    let bundle = read_bundle(folder.file("bundle")).map_err(|e| match e {
-        BundleError::Invalid { report } => format!("the generated bundle is invalid:\n{report}"),
-        other => other.to_string(),
+    let mut stages = StageTimes::default();
+    let truth = stages.time("truth world", || {
+        synthesise(&scenario, &folder, &mut report)
     })?;
-    measured_deformation(&bundle, &folder, &mut report)?;
-    track_camera_frames(&bundle, &truth, &mut report)?;
-    let material = identify(&bundle, &truth, &mut report)?;
-    invert_forces(&bundle, material, args.quick, &folder, &mut report)?;
-    diagnose_stage(&folder, args.quick, &mut report)?;
+    let bundle = stages.time("bundle: read, validate, plot", || {
+        let bundle = read_bundle(folder.file("bundle")).map_err(|e| match e {
+            BundleError::Invalid { report } => {
+                format!("the generated bundle is invalid:\n{report}")
+            }
+            other => other.to_string(),
+        })?;
+        measured_deformation(&bundle, &folder, &mut report)?;
+        Ok::<_, String>(bundle)
+    })?;
+    stages.time("camera: calibrate, track", || {
+        track_camera_frames(&bundle, &truth, &mut report)
+    })?;
+    let material = stages.time("identification", || identify(&bundle, &truth, &mut report))?;
+    stages.time("force inversion", || {
+        invert_forces(&bundle, material, args.quick, &folder, &mut report)
+    })?;
+    stages.time("diagnosis and simulation", || {
+        diagnose_stage(&folder, args.quick, &mut report)
+    })?;
+    stages.print();
+    report.table(
+        "Run time per stage",
+        &["stage", "wall time (s)"],
+        &stages.rows(),
+    );
 
     folder.write("report.html", &report.to_html("needle pipeline report"))?;
     let finished = folder.finish()?;
@@ -100,6 +120,32 @@ pub fn run(args: &PipelineArgs) -> Result<(), String> {
         finished.join("report.html").display()
     );
     Ok(())
+}
+
+/// Wall time of each stage, so that a user sees where the run went.
+#[derive(Default)]
+struct StageTimes(Vec<(&'static str, f64)>);
+
+impl StageTimes {
+    fn time<T>(&mut self, stage: &'static str, run: impl FnOnce() -> T) -> T {
+        let started = Instant::now();
+        let out = run();
+        self.0.push((stage, started.elapsed().as_secs_f64()));
+        out
+    }
+
+    fn rows(&self) -> Vec<Vec<String>> {
+        self.0
+            .iter()
+            .map(|(stage, seconds)| vec![stage.to_string(), format!("{seconds:.1}")])
+            .collect()
+    }
+
+    fn print(&self) {
+        for (stage, seconds) in &self.0 {
+            println!("{stage:<30} {seconds:>7.1} s");
+        }
+    }
 }
 
 fn spinner(message: &str) -> ProgressBar {

@@ -16,6 +16,8 @@
 //! elements). A piece on a shared edge or face is given to one element only;
 //! since the mesh is conforming, either neighbour gives the same nodal loads.
 
+use std::sync::OnceLock;
+
 use crate::element::facet::simplex_points;
 use crate::element::quadrature::gauss_legendre_unit;
 use crate::error::{FemError, finite};
@@ -217,7 +219,10 @@ pub fn add_line_load<const D: usize>(
     );
     breaks.sort_by(f64::total_cmp);
     breaks.dedup_by(|a, b| (*a - *b).abs() < 1e-12);
-    let gauss = gauss_legendre_unit(6);
+    // The rule is the same for every call; line loads are added thousands
+    // of times per fit, and its Newton iterations showed in profiles.
+    static GAUSS: OnceLock<Vec<(f64, f64)>> = OnceLock::new();
+    let gauss = GAUSS.get_or_init(|| gauss_legendre_unit(6));
     for w in breaks.windows(2) {
         let (t0, t1) = (w[0], w[1]);
         let middle = point_at(0.5 * (t0 + t1));
@@ -227,7 +232,7 @@ pub fn add_line_load<const D: usize>(
                 index: 0,
                 coordinates: middle.to_vec(),
             })?;
-        for &(g, gw) in &gauss {
+        for &(g, gw) in gauss {
             let t = t0 + g * (t1 - t0);
             let p = point_at(t);
             // Reference coordinates inside the owning element (affine map).
