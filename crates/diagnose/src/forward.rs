@@ -512,20 +512,37 @@ impl Forward {
             };
             // The plane model always runs (at weight 0 if need be): the
             // slab takes its needle placement, and the neo-Hookean terms
-            // are the plane's (see the module doc).
-            let placed = self.add_columns(
-                &self.plane,
-                plane_weight,
-                nonlinear,
-                model,
-                p,
-                obs,
-                first,
-                supports,
-                &columns,
-                &mut out,
-                None,
-            )?;
+            // are the plane's (see the module doc). The slab's
+            // factorisation does not depend on the placement, so it is
+            // made (and cached) on another thread meanwhile.
+            let (placed, slab_factorized) = rayon::join(
+                || {
+                    self.add_columns(
+                        &self.plane,
+                        plane_weight,
+                        nonlinear,
+                        model,
+                        p,
+                        obs,
+                        first,
+                        supports,
+                        &columns,
+                        &mut out,
+                        None,
+                    )
+                },
+                || {
+                    (slab_weight != 0.0)
+                        .then(|| {
+                            let moduli = Self::moduli(&self.slab, model, p, &obs.trials[first]);
+                            let nu = model.baseline(p).poisson_ratio;
+                            self.slab.factorized(&moduli, nu, supports)
+                        })
+                        .transpose()
+                },
+            );
+            let placed = placed?;
+            slab_factorized?;
             if slab_weight != 0.0 {
                 self.add_columns(
                     &self.slab,

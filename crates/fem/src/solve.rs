@@ -300,7 +300,7 @@ impl<const D: usize> LinearProblem<D> {
                 actual: rhs.nrows(),
             });
         }
-        self.factor()?.solve_in_place(rhs);
+        solve_split(self.factor()?, rhs);
         Ok(())
     }
 
@@ -376,7 +376,7 @@ impl<const D: usize> LinearProblem<D> {
                 *value = f[d] - lift[d];
             }
         }
-        factor.solve_in_place(rhs.as_mut());
+        solve_split(factor, rhs.as_mut());
         let mut out = Vec::with_capacity(loads.len());
         for c in 0..loads.len() {
             let column = rhs.col(c).try_as_col_major().expect("contiguous column");
@@ -403,6 +403,39 @@ impl<const D: usize> LinearProblem<D> {
         }
         Ok(multiply(&self.stiffness, displacement))
     }
+}
+
+/// Fewest right-hand sides worth a thread of their own: below this the
+/// blocked triangular solve loses more to narrower blocks than a second
+/// core gains.
+const MIN_COLUMNS_PER_THREAD: usize = 4;
+
+/// Solves $LL^T X = B$ in place, the columns of `rhs` split into one
+/// block per rayon thread (at least [`MIN_COLUMNS_PER_THREAD`] each). The
+/// solve of one column never reads another, so the blocks are
+/// independent. Callers that are already parallel (finite-difference
+/// columns, candidate refits) keep every core busy, and the blocks then
+/// run one after another on the same thread; callers that are not (a
+/// fit's trial point, one factorisation's many loads) get the other cores,
+/// which faer's own parallelism would give only with its thread pool
+/// competing with rayon's.
+fn solve_split(factor: &Llt<usize, f64>, rhs: MatMut<'_, f64>) {
+    let blocks = rayon::current_num_threads().min(rhs.ncols() / MIN_COLUMNS_PER_THREAD);
+    solve_blocks(factor, rhs, blocks.max(1));
+}
+
+fn solve_blocks(factor: &Llt<usize, f64>, rhs: MatMut<'_, f64>, blocks: usize) {
+    if blocks < 2 {
+        factor.solve_in_place(rhs);
+        return;
+    }
+    let left_blocks = blocks / 2;
+    let split = rhs.ncols() * left_blocks / blocks;
+    let (left, right) = rhs.split_at_col_mut(split);
+    rayon::join(
+        || solve_blocks(factor, left, left_blocks),
+        || solve_blocks(factor, right, blocks - left_blocks),
+    );
 }
 
 /// Number of rigid-body modes of the mesh that neither the prescribed dofs

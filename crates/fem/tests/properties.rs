@@ -539,6 +539,38 @@ fn refactorisation_with_new_materials_and_many_right_hand_sides() {
     );
 }
 
+/// Many load cases solved as one block (split over the threads) give each
+/// case's own solve: the blocks never mix columns.
+#[test]
+fn a_block_of_load_cases_equals_each_case_solved_alone() {
+    let mesh = distorted_square(ElementKind::Tri6, 4, 0.2, 3);
+    let fixed = Dirichlet::fixed_face(&mesh, needle_fem::Face::Back);
+    let n = mesh.dof_count();
+    let mut problem =
+        LinearProblem::new(Assembler::new(mesh, PLANE).unwrap(), vec![], fixed).unwrap();
+    problem
+        .factorize(&Materials::homogeneous(Material::new(1.0e4, 0.45).unwrap()))
+        .unwrap();
+    let cases: Vec<Vec<f64>> = (0..37)
+        .map(|c| {
+            (0..n)
+                .map(|d| ((d * (c + 3)) as f64 * 0.37).sin() * 1e-3)
+                .collect()
+        })
+        .collect();
+    let refs: Vec<&[f64]> = cases.iter().map(|c| c.as_slice()).collect();
+    let many = problem.displacements_many(&refs).unwrap();
+    assert_eq!(many.len(), cases.len());
+    for (case, together) in cases.iter().zip(&many) {
+        let alone = problem.solve(case).unwrap().displacement;
+        let scale = alone.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        assert!(scale > 0.0);
+        for (a, b) in alone.iter().zip(together) {
+            assert!((a - b).abs() <= 1e-12 * scale, "{a} vs {b}");
+        }
+    }
+}
+
 /// Shape functions are nodal ($N_a(x_b) = \delta_{ab}$), sum to one, and
 /// their gradients sum to zero, for every element kind.
 #[test]
