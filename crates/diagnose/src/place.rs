@@ -21,9 +21,9 @@
 //! [`SUBSTITUTIONS`] substitutions $X \leftarrow p - u(X)$). The forward
 //! model starts from the spatial line ($X = p$, $\delta = 0$) and does
 //! [`PLACEMENT_ROUNDS`] rounds on the plane body; the `out_of_plane` slab
-//! starts from the plane's placement and does [`SLAB_PLACEMENT_ROUNDS`]. Plain substitution contracts slowly: a
-//! deeper entry shortens the shaft, which lowers the load, which draws
-//! the entry back out. Each round therefore takes the secant (Anderson,
+//! starts from the plane's placement and does [`SLAB_PLACEMENT_ROUNDS`].
+//! Plain substitution contracts slowly: a deeper entry shortens the
+//! shaft, which lowers the load, which draws the entry back out. Each round therefore takes the secant (Anderson,
 //! depth one) step over its last two, [`Mixing`]. The count is fixed,
 //! never a tolerance, so that the prediction is a smooth function of the
 //! parameters for the finite-difference Jacobian.
