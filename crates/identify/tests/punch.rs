@@ -44,8 +44,11 @@ fn errors(fit: &MaterialFit) -> (f64, f64) {
 /// E within 0.2%, nu within 0.001, and it explains the data to the noise,
 /// with no marker left out. The paper's point force on the same data, even
 /// with the markers within one spacing of the probe left out, explains
-/// them worse (chi2/dof 1.49 against 1.29 on 86 000 residuals: a
-/// difference of some 17 000 in chi2).
+/// them worse: chi2/dof 1.385 against 1.268 on some 86 000 residuals, a
+/// difference of 24 times the spread $\sqrt{2/\nu}$ that noise alone gives
+/// a chi2/dof. (Against the plane truth's earlier mesh, ungraded at the
+/// punch edges, the figures were 1.49 and 1.29; part of that gap was the
+/// truth's own error beside the edges.)
 #[test]
 fn punch_model_recovers_the_plane_strain_truth() {
     let bundle = bundle_of(&truth(false, 11, 3, true));
@@ -79,9 +82,10 @@ fn punch_model_recovers_the_plane_strain_truth() {
         "point force: E {de_point:+.3e}, nu {dnu_point:+.5}, chi2/dof {:.3}",
         fit.reduced_chi2
     );
+    let spread = (2.0 / fit.dof as f64).sqrt();
     assert!(
-        fit.reduced_chi2 > 1.1 * punch_chi2,
-        "point chi2/dof {} against the punch's {punch_chi2}",
+        fit.reduced_chi2 > punch_chi2 + 10.0 * spread,
+        "point chi2/dof {} against the punch's {punch_chi2} (spread {spread:.4})",
         fit.reduced_chi2
     );
 }

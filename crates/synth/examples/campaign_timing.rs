@@ -8,6 +8,9 @@
 //! cargo run --profile bench -p needle-synth --example campaign_timing -- compare A.txt B.txt
 //! ```
 //!
+//! With `SCENARIO=FILE` in the environment, `generate` and `respond` use
+//! that scenario file instead of the paper default.
+//!
 //! `respond` writes one line per state: trial id, state, force and every
 //! marker displacement (x, y), in Rust's shortest round-trip notation.
 //! `compare` prints the largest difference of the marker displacements (m)
@@ -15,11 +18,14 @@
 
 use std::time::Instant;
 
-use needle_synth::{Scenario, Stage, generate, respond};
+use needle_synth::{Scenario, Stage, generate, load_scenario, respond};
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let scenario = Scenario::paper_default();
+    let scenario = std::env::var("SCENARIO").map_or_else(
+        |_| Scenario::paper_default(),
+        |file| load_scenario(&file).expect("a valid scenario file"),
+    );
     match args.first().map(String::as_str) {
         Some("generate") => {
             // Into a fresh temporary folder, or into OUT to keep the files.
@@ -36,7 +42,7 @@ fn main() {
                     }
                 },
             )
-            .expect("the default campaign generates");
+            .expect("the campaign generates");
             eprintln!(
                 "{:8.2} s done: {} needle solves, {} dofs, {} frames",
                 summary.seconds, summary.needle_solves, summary.dofs, summary.frames
@@ -45,7 +51,7 @@ fn main() {
         Some("respond") => {
             let out = args.get(1).expect("respond OUT");
             let mut text = String::new();
-            for r in respond(&scenario).expect("the default campaign responds") {
+            for r in respond(&scenario).expect("the campaign responds") {
                 for ((state, force), markers) in r.states.iter().zip(&r.force).zip(&r.markers) {
                     text.push_str(&format!("{} {state:?} {force:?}", r.id));
                     for m in markers {

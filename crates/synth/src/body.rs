@@ -15,6 +15,7 @@ use needle_fem::material::{Formulation, Materials};
 use needle_fem::mesh::{BoundaryFacet, Mesh, RectangleMesh, SlabMesh};
 
 use crate::error::SynthError;
+use crate::grid::{PLANE_GRADING_LEVELS, grade, grid_lines};
 use crate::scenario::Scenario;
 
 /// The meshed phantom.
@@ -52,12 +53,15 @@ pub(crate) struct Location {
 
 impl Body {
     /// Meshes the phantom of `scenario`: grid lines on every marker row and
-    /// column, on `x_lines` (needle lines, probe edges) and `y_lines` (layer
-    /// boundaries), each interval split to at most marker spacing /
-    /// refinement. 3-D when the scenario has `out_of_plane`.
+    /// column, on `x_lines` (needle lines, probe centres and edges) and
+    /// `y_lines` (layer boundaries), each interval split to at most marker
+    /// spacing / refinement. 3-D when the scenario has `out_of_plane`;
+    /// otherwise plane strain, the grid graded towards the probe edges
+    /// `x_edges`, the sides and the front and back faces.
     pub fn build(
         scenario: &Scenario,
         x_lines: &[f64],
+        x_edges: &[f64],
         y_lines: &[f64],
         region_of: impl Fn(f64) -> usize,
     ) -> Result<Self, SynthError> {
@@ -66,8 +70,17 @@ impl Body {
         let spacing_x = p.width / (p.markers.0 - 1) as f64;
         let spacing_y = p.depth / (p.markers.1 - 1) as f64;
         let target = spacing_x.min(spacing_y) / r.refinement as f64;
-        let xs = grid_lines(p.width, p.markers.0, x_lines, target);
-        let ys = grid_lines(p.depth, p.markers.1, y_lines, target);
+        let mut xs = grid_lines(p.width, p.markers.0, x_lines, target);
+        let mut ys = grid_lines(p.depth, p.markers.1, y_lines, target);
+        let slab = scenario.effects.out_of_plane.is_some();
+        if !slab {
+            // The plane truth is graded towards its singular lines (see
+            // `grid`); the slab keeps its uniform grid.
+            let mut singular_x = vec![0.0, p.width];
+            singular_x.extend_from_slice(x_edges);
+            grade(&mut xs, &singular_x, target, PLANE_GRADING_LEVELS);
+            grade(&mut ys, &[0.0, p.depth], target, PLANE_GRADING_LEVELS);
+        }
         let element_size = xs
             .windows(2)
             .chain(ys.windows(2))
@@ -79,7 +92,7 @@ impl Body {
             x_lines: xs,
             y_lines: ys,
         };
-        let (dim, npe, nodes, elements, assembly) = if scenario.effects.out_of_plane.is_some() {
+        let (dim, npe, nodes, elements, assembly) = if slab {
             let mut mesh: Mesh<3> =
                 SlabMesh::new(plan, p.thickness, r.layers)?.build(ElementKind::Tet10)?;
             mesh.renumber_spatially();
@@ -312,29 +325,6 @@ impl Body {
             }
         }
     }
-}
-
-/// Grid lines over `[0, extent]`: `count` equally spaced marker lines plus
-/// `extra` lines, every interval split into pieces no longer than `target`.
-/// Extra lines closer than a twentieth of `target` to another are dropped.
-fn grid_lines(extent: f64, count: usize, extra: &[f64], target: f64) -> Vec<f64> {
-    let mut lines: Vec<f64> = (0..count)
-        .map(|i| extent * i as f64 / (count - 1) as f64)
-        .collect();
-    for &x in extra {
-        if x > 0.0 && x < extent && lines.iter().all(|&l| (l - x).abs() > 0.05 * target) {
-            lines.push(x);
-        }
-    }
-    lines.sort_by(f64::total_cmp);
-    let mut out = vec![lines[0]];
-    for w in lines.windows(2) {
-        let pieces = ((w[1] - w[0]) / target - 1e-9).ceil().max(1.0) as usize;
-        for k in 1..=pieces {
-            out.push(w[0] + (w[1] - w[0]) * k as f64 / pieces as f64);
-        }
-    }
-    out
 }
 
 /// Bucket grid over the (x, y) plan for point location; every element is

@@ -49,12 +49,14 @@ pub mod effect;
 pub mod error;
 pub mod frames;
 pub mod generate;
+pub mod interpolate;
 pub mod needle;
 pub mod scenario;
 pub mod sensor;
 pub mod truth;
 
 mod body;
+mod grid;
 mod line_response;
 mod presets;
 mod probe;

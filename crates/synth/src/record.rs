@@ -12,9 +12,10 @@ use crate::camera::TrueCamera;
 use crate::error::SynthError;
 use crate::frames::{Staging, render_trial_frames, selected_frames};
 use crate::generate::{needle_id, probe_id};
+use crate::interpolate::{Stencil, stencil};
 use crate::needle::NeedleRun;
 use crate::probe::ProbeRun;
-use crate::sensor::{Instruments, bracket, sample_times};
+use crate::sensor::{Instruments, sample_times};
 use crate::strain::peak_strain;
 use crate::truth::TrialTruth;
 use crate::world::World;
@@ -96,8 +97,8 @@ impl Recorder<'_> {
                     stream as u64,
                     &numbers,
                     |number| {
-                        let (j, w) = bracket(grid, (velocity * times[number as usize]).min(end));
-                        positions_at(world, table, j, w).collect()
+                        let at = stencil(grid, (velocity * times[number as usize]).min(end));
+                        positions_at(world, table, at).collect()
                     },
                     &dir,
                     &mut trial,
@@ -114,30 +115,23 @@ impl Recorder<'_> {
     }
 }
 
-/// Interpolated marker positions (rest + displacement) between states:
-/// x, y on the top face and the lift z out of it.
+/// Interpolated marker positions (rest + displacement) between states
+/// (`at` on the trial's state grid): x, y on the top face and the lift z
+/// out of it.
 pub(crate) fn positions_at<'a>(
     world: &'a World,
     table: &'a [Vec<[f64; 3]>],
-    i: usize,
-    w: f64,
+    at: Stencil,
 ) -> impl Iterator<Item = [f64; 3]> + 'a {
-    let (a, b) = (&table[i], &table[(i + 1).min(table.len() - 1)]);
-    world
-        .markers
-        .iter()
-        .zip(a.iter().zip(b))
-        .map(move |(m, (a, b))| {
-            [
-                m[0] + (1.0 - w) * a[0] + w * b[0],
-                m[1] + (1.0 - w) * a[1] + w * b[1],
-                (1.0 - w) * a[2] + w * b[2],
-            ]
-        })
-}
-
-fn lerp(table: &[f64], i: usize, w: f64) -> f64 {
-    (1.0 - w) * table[i] + w * table[(i + 1).min(table.len() - 1)]
+    world.markers.iter().enumerate().map(move |(m, rest)| {
+        let mut p = [rest[0], rest[1], 0.0];
+        for (j, w) in at.terms() {
+            for (c, u) in p.iter_mut().zip(table[j][m]) {
+                *c += w * u;
+            }
+        }
+        p
+    })
 }
 
 /// Writes the markers of one trial: camera frames at `times`, each at the
@@ -154,8 +148,7 @@ fn track(
     let lens = world.scenario.effects.lens_distortion;
     let markers = trial.markers_mut();
     for (frame, &t) in times.iter().enumerate() {
-        let (i, w) = bracket(grid, coordinate(t));
-        let rows: Vec<(u32, [f64; 2])> = positions_at(world, table, i, w)
+        let rows: Vec<(u32, [f64; 2])> = positions_at(world, table, stencil(grid, coordinate(t)))
             .enumerate()
             .map(|(id, p)| {
                 let p = [p[0], p[1]];
@@ -187,15 +180,15 @@ fn probe_trial(
     let duration = probe.indentation / probe.velocity;
     let indentation = |t: f64| (probe.velocity * t).min(probe.indentation);
     for t in sample_times(s.force_rate, duration) {
-        let (i, w) = bracket(&run.indentations, indentation(t));
+        let at = stencil(&run.indentations, indentation(t));
         trial.tool.push(ToolSample {
             t,
             tip_x: probe.x,
             tip_y: indentation(t),
             theta: 0.0,
             fx: instruments.force(0.0),
-            fy: instruments.force(lerp(&run.force, i, w)),
-            mz: lerp(&run.moment, i, w),
+            fy: instruments.force(at.apply(&run.force)),
+            mz: at.apply(&run.moment),
         });
     }
     let frames = sample_times(s.camera_rate, duration);
@@ -241,14 +234,14 @@ fn needle_trial(
     let duration = depth / plan.velocity;
     let tip = |t: f64| (plan.velocity * t).min(depth);
     for t in sample_times(s.force_rate, duration) {
-        let (i, w) = bracket(&run.depths, tip(t));
+        let at = stencil(&run.depths, tip(t));
         trial.tool.push(ToolSample {
             t,
             tip_x: plan.line,
             tip_y: tip(t),
             theta: 0.0,
             fx: instruments.force(0.0),
-            fy: instruments.force(lerp(&run.force, i, w)),
+            fy: instruments.force(at.apply(&run.force)),
             mz: 0.0,
         });
     }

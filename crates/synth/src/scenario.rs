@@ -71,9 +71,10 @@ pub struct Resolution {
     /// Element layers through the thickness (3-D truth only; even, so that
     /// the mid-plane carrying the needle is a node plane).
     pub layers: usize,
-    /// Tip depth between two solved states of a needle insertion (m);
-    /// camera frames and sensor samples in between are interpolated
-    /// linearly in depth.
+    /// Tip depth between two solved states of a needle insertion (m),
+    /// halved over the first `needle::ENTRY_DEPTH`; camera frames and
+    /// sensor samples in between are interpolated by cubics in depth
+    /// (`interpolate`).
     pub depth_step: f64,
     /// Length of one shaft integration segment (m); two Gauss points each.
     pub shaft_step: f64,

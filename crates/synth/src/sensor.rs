@@ -78,14 +78,3 @@ pub fn sample_times(rate: f64, duration: f64) -> Vec<f64> {
         .map(|n| (n as f64 / rate * 1e6).round() / 1e6)
         .collect()
 }
-
-/// Index and weight to interpolate a table on the increasing `grid` at
-/// `x`: value = (1 - w) * table\[i\] + w * table\[i + 1\].
-pub fn bracket(grid: &[f64], x: f64) -> (usize, f64) {
-    if grid.len() < 2 {
-        return (0, 0.0);
-    }
-    let i = grid.partition_point(|&g| g <= x).clamp(1, grid.len() - 1) - 1;
-    let w = ((x - grid[i]) / (grid[i + 1] - grid[i])).clamp(0.0, 1.0);
-    (i, w)
-}

@@ -5,7 +5,9 @@ use crate::effect::MaterialStiffening;
 use crate::effect::material_nonlinearity::{NeoHookean, uniaxial_nominal_stress};
 use crate::effect::{CompliantSupport, Effects, LayeredStiffness, OutOfPlane, TipCuttingForce};
 use crate::line_response::{LineResponse, Missing};
-use crate::needle::{Band, CONSISTENCY_TOLERANCE, NeedleRun, insert, insert_with};
+use crate::needle::{
+    Band, CONSISTENCY_TOLERANCE, ENTRY_DEPTH, NeedleRun, depth_grid, insert, insert_with,
+};
 use crate::probe::press;
 use crate::scenario::{NeedlePlan, Scenario};
 use crate::system::{Factorised, Stiffness};
@@ -272,6 +274,13 @@ fn neo_hookean_tangent_at_rest_is_the_linear_stiffness() {
     }
 }
 
+/// The probe's force and marker field, neo-Hookean against linear. The
+/// departure is asserted on the marker field: on the plane mesh graded
+/// towards the probe edges the total force of the two materials differs
+/// by only 0.4% at 3 and at 6 mm (cancelling stiffening and softening
+/// under the punch; the 2% seen on the old uniform coarse mesh was the
+/// mesh's), while the markers depart in proportion to the indentation
+/// (3.6% and 7.3%).
 #[test]
 fn neo_hookean_matches_linear_at_small_load_and_departs_at_large() {
     let mut s = small();
@@ -284,18 +293,29 @@ fn neo_hookean_matches_linear_at_small_load_and_departs_at_large() {
             indentation,
             ..s.probes[0]
         };
-        let a = *press(&world, &probe).unwrap().force.last().unwrap();
-        let b = *press(&linear_world, &probe).unwrap().force.last().unwrap();
-        let relative = (a - b).abs() / b;
+        let (a, b) = (
+            press(&world, &probe).unwrap(),
+            press(&linear_world, &probe).unwrap(),
+        );
+        let (fa, fb) = (*a.force.last().unwrap(), *b.force.last().unwrap());
+        let force = (fa - fb).abs() / fb;
+        let (ma, mb) = (a.markers.last().unwrap(), b.markers.last().unwrap());
+        let largest = mb.iter().map(|m| m[0].hypot(m[1])).fold(0.0, f64::max);
+        let markers = ma
+            .iter()
+            .zip(mb)
+            .map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1]))
+            .fold(0.0, f64::max)
+            / largest;
         if close {
             assert!(
-                relative < 1e-3,
-                "small indentation: neo-Hookean {a} vs linear {b}"
+                force < 1e-3 && markers < 1e-3,
+                "small indentation: neo-Hookean {fa} vs linear {fb}, markers {markers}"
             );
         } else {
             assert!(
-                relative > 2e-2,
-                "large indentation: neo-Hookean {a} vs linear {b}"
+                markers > 2e-2,
+                "large indentation: markers depart by {markers} of the largest"
             );
         }
     }
@@ -557,5 +577,26 @@ fn insertion_from_kept_columns_equals_full_solves_with_and_without_fallback() {
                     < CONSISTENCY_TOLERANCE
             );
         }
+    }
+}
+
+#[test]
+fn needle_states_are_halved_near_the_entry_and_nest_when_the_step_is_halved() {
+    let grid = depth_grid(0.05, 0.001);
+    // 8 halved intervals (16 states) and 42 whole ones, after the rest state.
+    assert_eq!(grid.len(), 1 + 16 + 42);
+    for (k, w) in grid.windows(2).enumerate() {
+        let expected = if w[0] < ENTRY_DEPTH - 1e-12 {
+            0.0005
+        } else {
+            0.001
+        };
+        assert!((w[1] - w[0] - expected).abs() < 1e-12, "interval {k}");
+    }
+    assert_eq!(*grid.last().unwrap(), 0.05);
+    let fine = depth_grid(0.05, 0.0005);
+    assert_eq!(fine.len(), 2 * grid.len() - 1);
+    for (a, b) in fine.iter().step_by(2).zip(&grid) {
+        assert!((a - b).abs() < 1e-15);
     }
 }

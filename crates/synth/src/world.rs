@@ -40,23 +40,24 @@ pub(crate) struct World<'s> {
 
 impl<'s> World<'s> {
     /// Meshes the phantom with grid lines on the needle lines, the probe
-    /// edges and the layer boundaries, and sets up its supports.
+    /// centres and edges and the layer boundaries (graded towards the
+    /// probe edges in plane strain), and sets up its supports.
     pub fn new(scenario: &'s Scenario) -> Result<Self, SynthError> {
         let p = &scenario.phantom;
+        let edges: Vec<f64> = scenario
+            .probes
+            .iter()
+            .flat_map(|probe| [probe.x - probe.width / 2.0, probe.x + probe.width / 2.0])
+            .collect();
         let mut x_lines: Vec<f64> = scenario.needles.plan().iter().map(|n| n.line).collect();
-        for probe in &scenario.probes {
-            x_lines.extend([
-                probe.x - probe.width / 2.0,
-                probe.x,
-                probe.x + probe.width / 2.0,
-            ]);
-        }
+        x_lines.extend(scenario.probes.iter().map(|probe| probe.x));
+        x_lines.extend(&edges);
         let layers = scenario.effects.layered_stiffness.clone();
         let y_lines = layers
             .as_ref()
             .map(|l| l.boundaries.clone())
             .unwrap_or_default();
-        let body = Body::build(scenario, &x_lines, &y_lines, |y| {
+        let body = Body::build(scenario, &x_lines, &edges, &y_lines, |y| {
             layers.as_ref().map_or(0, |l| l.layer_of(y))
         })?;
         let tol = 1e-9 * p.depth;

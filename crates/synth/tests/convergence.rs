@@ -11,11 +11,15 @@
 //! $p$ and, by Richardson extrapolation, the error of each level. The
 //! test asserts that the default resolution is within a tenth of the
 //! marker noise, and prints the tables that `docs/truth-world.md` quotes.
-//! A third test compares the plane-strain truth of
-//! `fixtures/scenarios/null.ron` (one probe, one insertion) with the same
-//! at twice its refinement.
+//! A second test measures the interpolation between needle states. A
+//! third compares the plane-strain truth of `fixtures/scenarios/null.ron`
+//! (one probe, one insertion; its grid graded towards the probe edges,
+//! sides and faces) with the same at twice its refinement, where every
+//! element, the graded ones included, is halved.
 
-use needle_synth::{EffectId, Effects, Scenario, load_scenario, respond};
+use needle_synth::interpolate::stencil;
+use needle_synth::sensor::stated_force_sigma;
+use needle_synth::{EffectId, Effects, Scenario, TrialResponse, load_scenario, respond};
 
 fn slab(refinement: usize, layers: usize, depth_step: f64) -> Scenario {
     let mut s = Scenario::null();
@@ -128,28 +132,129 @@ fn discretisation_error_is_below_a_tenth_of_the_marker_noise() {
     );
 }
 
+/// Largest error over every marker and every odd state of `fine` (states
+/// at half the step) when read from the even states only: by the straight
+/// line between the two neighbours, and by the truth's own interpolation
+/// (`needle_synth::interpolate`). Markers (m), as vector lengths, and
+/// force (N); the worst state of the truth's interpolation.
+struct InterpolationErrors {
+    linear: f64,
+    truth: f64,
+    worst_state: usize,
+    force_linear: f64,
+    force_truth: f64,
+}
+
+fn interpolation_errors(fine: &TrialResponse) -> InterpolationErrors {
+    let grid: Vec<f64> = fine.states.iter().step_by(2).copied().collect();
+    let coarse: Vec<&Vec<[f64; 2]>> = fine.markers.iter().step_by(2).collect();
+    let force: Vec<f64> = fine.force.iter().step_by(2).copied().collect();
+    assert_eq!(fine.states.len() % 2, 1, "an even number of fine steps");
+    let mut e = InterpolationErrors {
+        linear: 0.0,
+        truth: 0.0,
+        worst_state: 0,
+        force_linear: 0.0,
+        force_truth: 0.0,
+    };
+    for k in (1..fine.states.len()).step_by(2) {
+        let s = stencil(&grid, fine.states[k]);
+        let (a, b) = (&fine.markers[k - 1], &fine.markers[k + 1]);
+        for (m, exact) in fine.markers[k].iter().enumerate() {
+            let line = [0.5 * (a[m][0] + b[m][0]), 0.5 * (a[m][1] + b[m][1])];
+            let mut read = [0.0; 2];
+            for (j, w) in s.terms() {
+                read[0] += w * coarse[j][m][0];
+                read[1] += w * coarse[j][m][1];
+            }
+            e.linear = e.linear.max((line[0] - exact[0]).hypot(line[1] - exact[1]));
+            let error = (read[0] - exact[0]).hypot(read[1] - exact[1]);
+            if error > e.truth {
+                e.truth = error;
+                e.worst_state = k;
+            }
+        }
+        let line = 0.5 * (fine.force[k - 1] + fine.force[k + 1]);
+        e.force_linear = e.force_linear.max((line - fine.force[k]).abs());
+        e.force_truth = e.force_truth.max((s.apply(&force) - fine.force[k]).abs());
+    }
+    e
+}
+
 #[test]
-#[ignore = "minutes: interpolation between solved needle states"]
+#[ignore = "seconds: interpolation between solved needle states"]
 fn interpolation_between_states_is_below_a_tenth_of_the_marker_noise() {
     let default = Scenario::paper_default();
     let sigma = default.sensors.marker_sigma;
-    let r = default.resolution;
-    // States at half the step: the odd ones are what interpolation
-    // between the even ones would give at the default step.
-    let fine = respond(&slab(r.refinement, r.layers, r.depth_step / 2.0)).unwrap();
-    let markers = &fine[0].markers;
-    let mut error = 0.0f64;
-    for k in (1..markers.len() - 1).step_by(2) {
-        for ((a, b), m) in markers[k - 1].iter().zip(&markers[k + 1]).zip(&markers[k]) {
-            error = error.max((0.5 * (a[0] + b[0]) - m[0]).hypot(0.5 * (a[1] + b[1]) - m[1]));
-        }
-    }
+    let force_sigma = stated_force_sigma(&default.sensors);
+    let step = default.resolution.depth_step;
+    // The 3-D null slab at 1 mm/s; the paper default's slab (with its tip
+    // peak) at 9 mm/s, its largest shaft load; the plane-strain null truth.
+    let mut paper = default.clone();
+    paper.probes.clear();
+    paper.needles.velocities = vec![0.009];
+    paper.needles.days = vec![2.0];
+    paper.frames = None;
+    let mut cases = vec![
+        (
+            "3-D null slab, 1 mm/s",
+            slab(
+                default.resolution.refinement,
+                default.resolution.layers,
+                step,
+            ),
+        ),
+        ("3-D paper default, 9 mm/s", paper),
+        ("plane null truth, 1 mm/s", plane(1)),
+        (
+            "plane tip peak alone, 1 mm/s",
+            fixture("tip-cutting-force.ron"),
+        ),
+    ];
     println!(
-        "interpolation error at depth step {}: {error:.3e} m ({:.3} sigma)",
-        r.depth_step,
-        error / sigma
+        "states every {step} m, read at the midpoints from states 2 x {} m apart",
+        step / 2.0
     );
-    assert!(error < 0.1 * sigma);
+    println!(
+        "| truth | linear (um) | cubic (um) | cubic / sigma | worst state (mm) | force linear / cubic (mN) |"
+    );
+    println!("|---|---|---|---|---|---|");
+    let mut largest = 0.0f64;
+    for (name, s) in &mut cases {
+        s.probes.clear();
+        s.resolution.depth_step = step / 2.0;
+        let fine = respond(s).unwrap();
+        let e = interpolation_errors(&fine[0]);
+        println!(
+            "| {name} | {:.3} | {:.3} | {:.4} | {:.1} | {:.3} / {:.4} |",
+            e.linear * 1e6,
+            e.truth * 1e6,
+            e.truth / sigma,
+            fine[0].states[e.worst_state] * 1e3,
+            e.force_linear * 1e3,
+            e.force_truth * 1e3,
+        );
+        assert!(
+            e.force_truth < 0.1 * force_sigma,
+            "{name}: force {}",
+            e.force_truth
+        );
+        largest = largest.max(e.truth);
+    }
+    assert!(largest < 0.1 * sigma, "interpolation error {largest} m");
+}
+
+/// One 1 mm/s insertion of a fixture scenario, without its probes.
+fn fixture(name: &str) -> Scenario {
+    let path = format!(
+        "{}/../../fixtures/scenarios/{name}",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let mut s = load_scenario(&path).unwrap();
+    s.probes.clear();
+    s.needles.velocities = vec![0.001];
+    s.needles.days = vec![2.0];
+    s
 }
 
 /// The null plane-strain truth of `fixtures/scenarios/null.ron` (the truth
