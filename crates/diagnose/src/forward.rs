@@ -846,6 +846,14 @@ mod tests {
         );
     }
 
+    /// The largest differences between two predictions over the first `m`
+    /// values (the markers) and over the rest (the forces).
+    fn largest_gaps(a: &[f64], b: &[f64], m: usize) -> (f64, f64) {
+        let gap =
+            |range: std::ops::Range<usize>| range.map(|i| (a[i] - b[i]).abs()).fold(0.0, f64::max);
+        (gap(0..m), gap(m..a.len()))
+    }
+
     #[test]
     fn placement_rounds_have_converged_far_below_the_noise() {
         let (obs, mut forward, start) = paper_forward();
@@ -854,16 +862,10 @@ mod tests {
         // in by about 2 mm.
         let p = [25.0e3, 0.45, 10.0, 0.002, 20.0, 0.005];
         let m = obs.marker_count();
-        let largest_gaps = |a: &[f64], b: &[f64]| {
-            let gap = |range: std::ops::Range<usize>| {
-                range.map(|i| (a[i] - b[i]).abs()).fold(0.0, f64::max)
-            };
-            (gap(0..m), gap(m..a.len()))
-        };
         let used = forward.predict(&model, &p, &obs).unwrap().values;
         forward.placement_rounds = 12;
         let converged = forward.predict(&model, &p, &obs).unwrap().values;
-        let (marker_gap, force_gap) = largest_gaps(&used, &converged);
+        let (marker_gap, force_gap) = largest_gaps(&used, &converged, m);
         // 0.05 um against micrometres of marker noise, 1 uN against
         // millinewtons of force noise.
         assert!(marker_gap < 5e-8, "marker gap {marker_gap} m");
@@ -872,7 +874,7 @@ mod tests {
         // noise.
         forward.placement_rounds = 0;
         let spatial = forward.predict(&model, &p, &obs).unwrap().values;
-        let (marker_change, force_change) = largest_gaps(&spatial, &converged);
+        let (marker_change, force_change) = largest_gaps(&spatial, &converged, m);
         assert!(marker_change > 5e-5, "markers move {marker_change} m");
         assert!(force_change > 5e-3, "force changes {force_change} N");
     }
@@ -883,16 +885,10 @@ mod tests {
         let model = with_effect(&forward, start, "out_of_plane");
         let p = [25.0e3, 0.45, 10.0, 0.002, 1.0];
         let m = obs.marker_count();
-        let largest_gaps = |a: &[f64], b: &[f64]| {
-            let gap = |range: std::ops::Range<usize>| {
-                range.map(|i| (a[i] - b[i]).abs()).fold(0.0, f64::max)
-            };
-            (gap(0..m), gap(m..a.len()))
-        };
         let used = forward.predict(&model, &p, &obs).unwrap().values;
         forward.slab_placement_rounds = 12;
         let converged = forward.predict(&model, &p, &obs).unwrap().values;
-        let (marker_gap, force_gap) = largest_gaps(&used, &converged);
+        let (marker_gap, force_gap) = largest_gaps(&used, &converged, m);
         // Measured 8.5 nm and 1.3 uN, against micrometres of marker noise
         // and millinewtons of force noise.
         assert!(marker_gap < 5e-8, "marker gap {marker_gap} m");
@@ -902,7 +898,7 @@ mod tests {
         // the slab drags its mid-plane along the needle differently.
         forward.slab_placement_rounds = 0;
         let plane_placed = forward.predict(&model, &p, &obs).unwrap().values;
-        let (marker_change, force_change) = largest_gaps(&plane_placed, &converged);
+        let (marker_change, force_change) = largest_gaps(&plane_placed, &converged, m);
         assert!(marker_change > 1e-5, "markers move {marker_change} m");
         assert!(force_change > 2e-3, "force changes {force_change} N");
     }

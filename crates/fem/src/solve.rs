@@ -405,9 +405,8 @@ impl<const D: usize> LinearProblem<D> {
     }
 }
 
-/// Fewest right-hand sides worth a thread of their own: below this the
-/// blocked triangular solve loses more to narrower blocks than a second
-/// core gains.
+/// Fewest right-hand sides given a thread of their own: narrower blocks
+/// make poor use of the blocked kernels. A judgement, not a tuned value.
 const MIN_COLUMNS_PER_THREAD: usize = 4;
 
 /// Solves $LL^T X = B$ in place, the columns of `rhs` split into one
@@ -416,9 +415,9 @@ const MIN_COLUMNS_PER_THREAD: usize = 4;
 /// independent. Callers that are already parallel (finite-difference
 /// columns, candidate refits) keep every core busy, and the blocks then
 /// run one after another on the same thread; callers that are not (a
-/// fit's trial point, one factorisation's many loads) get the other cores,
-/// which faer's own parallelism would give only with its thread pool
-/// competing with rayon's.
+/// fit's trial point, one factorisation's many loads) get the other cores
+/// even where faer's own parallelism is off (the diagnosis turns it off:
+/// inside parallel fits it cost CPU time).
 fn solve_split(factor: &Llt<usize, f64>, rhs: MatMut<'_, f64>) {
     let blocks = rayon::current_num_threads().min(rhs.ncols() / MIN_COLUMNS_PER_THREAD);
     solve_blocks(factor, rhs, blocks.max(1));
