@@ -4,13 +4,16 @@
 //! `whiten` (independent marker and force noise, plus each probe frame's
 //! force noise carried to its markers through the unit responses).
 
+use std::sync::{Arc, Mutex};
+
 use needle_lsq::{LevenbergMarquardt, Problem};
 use serde::{Deserialize, Serialize};
 
 use crate::error::DiagnoseError;
-use crate::forward::Forward;
+use crate::forward::{Forward, Placements, Start};
 use crate::model::{Model, PROBE_WIDTH};
 use crate::observe::Observations;
+use crate::place::NEAR_ROUNDS;
 use crate::whiten::Whitening;
 
 /// Misfit of a fitted model, per channel. A channel without data has `NaN`.
@@ -37,18 +40,41 @@ pub(crate) struct Context {
 impl Context {
     /// Residuals model - data at `p`, not whitened.
     pub fn residuals(&self, model: &Model, p: &[f64]) -> Result<Vec<f64>, DiagnoseError> {
-        let prediction = self.forward.predict(model, p, &self.obs)?;
-        Ok(prediction
+        Ok(self.evaluate(model, p, Start::Cold)?.0)
+    }
+
+    /// Residuals model - data at `p` with the needle loads placed from
+    /// `start`, not whitened, and where the loads ended up.
+    pub fn evaluate(
+        &self,
+        model: &Model,
+        p: &[f64],
+        start: Start<'_>,
+    ) -> Result<(Vec<f64>, Placements), DiagnoseError> {
+        let (prediction, placements) = self.forward.predict_from(model, p, &self.obs, start)?;
+        let residuals = prediction
             .values
             .iter()
             .zip(&self.measured)
             .map(|(m, y)| m - y)
-            .collect())
+            .collect();
+        Ok((residuals, placements))
     }
 
-    /// Whitened residuals of the model at `p`.
-    pub fn whitened(&self, model: &Model, p: &[f64]) -> Result<Vec<f64>, DiagnoseError> {
-        Ok(self.whitening.apply(&self.residuals(model, p)?))
+    /// Whitened residuals at `p` with the loads placed from `placements`
+    /// in [`NEAR_ROUNDS`] rounds: the map a finite-difference column around
+    /// the point that `placements` come from differences.
+    pub fn whitened_near(
+        &self,
+        model: &Model,
+        placements: &Placements,
+        p: &[f64],
+    ) -> Result<Vec<f64>, DiagnoseError> {
+        let start = Start::Near {
+            placements,
+            rounds: NEAR_ROUNDS,
+        };
+        Ok(self.whitening.apply(&self.evaluate(model, p, start)?.0))
     }
 }
 
@@ -65,9 +91,46 @@ pub(crate) struct Fitted {
     pub dof: [f64; 2],
 }
 
+/// How many evaluations' placements a fit keeps: the Jacobian is taken at
+/// the point last accepted, which is the last or next-to-last evaluated.
+const KEPT_PLACEMENTS: usize = 3;
+
 pub(crate) struct FitProblem<'a> {
     pub context: &'a Context,
     pub model: &'a Model,
+    /// The placements of the last evaluations, by their parameters.
+    placements: Mutex<Vec<(Vec<f64>, Arc<Placements>)>>,
+}
+
+impl<'a> FitProblem<'a> {
+    pub fn new(context: &'a Context, model: &'a Model) -> Self {
+        Self {
+            context,
+            model,
+            placements: Mutex::new(Vec::new()),
+        }
+    }
+
+    fn keep(&self, params: &[f64], placements: Placements) -> Arc<Placements> {
+        let placements = Arc::new(placements);
+        let mut kept = self.placements.lock().unwrap_or_else(|e| e.into_inner());
+        if kept.len() == KEPT_PLACEMENTS {
+            kept.remove(0);
+        }
+        kept.push((params.to_vec(), Arc::clone(&placements)));
+        placements
+    }
+
+    /// The placements of the model proper at `params`.
+    fn placements_at(&self, params: &[f64]) -> Result<Arc<Placements>, DiagnoseError> {
+        let kept = self.placements.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((_, found)) = kept.iter().find(|(at, _)| at.as_slice() == params) {
+            return Ok(Arc::clone(found));
+        }
+        drop(kept);
+        let (_, placements) = self.context.evaluate(self.model, params, Start::Cold)?;
+        Ok(self.keep(params, placements))
+    }
 }
 
 impl Problem for FitProblem<'_> {
@@ -84,9 +147,31 @@ impl Problem for FitProblem<'_> {
         params: &[f64],
         out: &mut [f64],
     ) -> Result<(), needle_lsq::EvaluationError> {
-        let whitened = self.context.whitened(self.model, params)?;
-        out.copy_from_slice(&whitened);
+        let (residuals, placements) = self.context.evaluate(self.model, params, Start::Cold)?;
+        self.keep(params, placements);
+        out.copy_from_slice(&self.context.whitening.apply(&residuals));
         Ok(())
+    }
+
+    /// The Jacobian's columns place the needle loads from the base
+    /// point's placements in [`NEAR_ROUNDS`] rounds instead of from the
+    /// spatial line: on the default campaign that halves their
+    /// back-substitutions.
+    fn residuals_near(
+        &self,
+        base: &[f64],
+        params: &[f64],
+        out: &mut [f64],
+    ) -> Option<Result<(), needle_lsq::EvaluationError>> {
+        let mut evaluate = || -> Result<(), DiagnoseError> {
+            let placements = self.placements_at(base)?;
+            let whitened = self
+                .context
+                .whitened_near(self.model, &placements, params)?;
+            out.copy_from_slice(&whitened);
+            Ok(())
+        };
+        Some(evaluate().map_err(Into::into))
     }
 }
 
@@ -113,7 +198,7 @@ pub(crate) fn fit_model(
     fixed: &[bool],
     tolerance: f64,
 ) -> Result<Fitted, DiagnoseError> {
-    let problem = FitProblem { context, model };
+    let problem = FitProblem::new(context, model);
     let mut fixed = fixed.to_vec();
     fixed.resize(model.len(), false);
     if !context.obs.has_probe_frames() {

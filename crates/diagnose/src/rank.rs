@@ -43,6 +43,7 @@ use serde::{Deserialize, Serialize};
 use crate::chi2::chi2_upper_tail;
 use crate::error::DiagnoseError;
 use crate::fit::{CANDIDATE_TOLERANCE, Context, Fit, Fitted, fit_model};
+use crate::forward::{Placements, Start};
 use crate::model::{Model, PROBE_WIDTH};
 use crate::spec::ModelSpec;
 
@@ -95,27 +96,53 @@ const REFIT_SCORE_FRACTION: f64 = 0.1;
 /// current model's free parameters: shared by every candidate's score test,
 /// since each effect is silent at its null (`forward` tests this), so the
 /// augmented models predict the same there.
+///
+/// The differences start the needle placement from the current fit's own
+/// (see `fit`), so they difference the map that does that, whose value at
+/// the fit is `near`; the score is taken on the model's residuals proper.
 struct CurrentJacobian {
     residuals: Vec<f64>,
     columns: DMatrix<f64>,
+    placements: Placements,
+    near: Vec<f64>,
 }
 
 impl CurrentJacobian {
     fn new(context: &Context, current: &Model, fitted: &Fitted) -> Result<Self, DiagnoseError> {
         let at = &fitted.params;
-        let residuals = context.whitened(current, at)?;
+        let (residuals, placements) = context.evaluate(current, at, Start::Cold)?;
+        let residuals = context.whitening.apply(&residuals);
+        let near = context.whitened_near(current, &placements, at)?;
         let free: Vec<usize> = (0..current.len())
             .filter(|&k| {
                 fitted.report.uncertainty.status[k] == needle_lsq::ParameterStatus::Estimated
             })
             .collect();
+        let base = Base {
+            at,
+            placements: &placements,
+            residuals: &near,
+        };
         let derivatives = free
             .par_iter()
-            .map(|&k| forward_difference(context, current, at, &residuals, k, 1e-6))
+            .map(|&k| forward_difference(context, current, &base, k, 1e-6))
             .collect::<Result<Vec<_>, _>>()?;
         let columns = DMatrix::from_fn(residuals.len(), free.len(), |i, j| derivatives[j][i]);
-        Ok(Self { residuals, columns })
+        Ok(Self {
+            residuals,
+            columns,
+            placements,
+            near,
+        })
     }
+}
+
+/// The point a forward difference steps from: its parameters, needle
+/// placements and whitened residuals from those placements.
+struct Base<'a> {
+    at: &'a [f64],
+    placements: &'a Placements,
+    residuals: &'a [f64],
 }
 
 /// $\partial r / \partial p_k$ by a forward difference of `relative` times
@@ -123,11 +150,11 @@ impl CurrentJacobian {
 fn forward_difference(
     context: &Context,
     model: &Model,
-    at: &[f64],
-    base: &[f64],
+    base: &Base<'_>,
     k: usize,
     relative: f64,
 ) -> Result<Vec<f64>, DiagnoseError> {
+    let at = base.at;
     let spec = &model.parameters[k];
     let mut h = relative * spec.scale.max(at[k].abs());
     if spec.upper.is_some_and(|u| at[k] + h > u) {
@@ -135,8 +162,11 @@ fn forward_difference(
     }
     let mut p = at.to_vec();
     p[k] += h;
-    let r = context.whitened(model, &p)?;
-    Ok(r.iter().zip(base).map(|(a, b)| (a - b) / h).collect())
+    let r = context.whitened_near(model, base.placements, &p)?;
+    Ok(r.iter()
+        .zip(base.residuals)
+        .map(|(a, b)| (a - b) / h)
+        .collect())
 }
 
 /// Score statistic of the effect that extends `current` to `augmented`,
@@ -158,9 +188,16 @@ fn score_test(
     let tested: Vec<usize> = (n_current..augmented.len())
         .filter(|&k| augmented.parameters[k].tested)
         .collect();
+    // Each effect is silent at its null, so the augmented model places the
+    // loads where the current one does.
+    let near = Base {
+        at: &at,
+        placements: &current.placements,
+        residuals: &current.near,
+    };
     let derivatives = tested
         .par_iter()
-        .map(|&k| forward_difference(context, augmented, &at, base, k, 1e-3))
+        .map(|&k| forward_difference(context, augmented, &near, k, 1e-3))
         .collect::<Result<Vec<_>, _>>()?;
     let m = base.len();
     let jt = &current.columns;

@@ -5,7 +5,9 @@
 //! relative to the parameter's magnitude, `h_j = eta max(|p_j|, s_j)`,
 //! `eta = sqrt(eps)` (forward) or `eps^{1/3}` (central), `s_j` the scale.
 //! A step that would cross a bound, or whose evaluation fails, is taken on
-//! the other side instead.
+//! the other side instead. Where the problem has a map of its own near the
+//! base point ([`Problem::residuals_near`]), every column and the base
+//! value come from that map.
 
 use nalgebra::DMatrix;
 use rayon::prelude::*;
@@ -83,13 +85,25 @@ pub(crate) fn difference_columns<P: Problem + ?Sized>(
     if m == 0 {
         return Ok((jacobian, 0));
     }
+    // A problem with its own map near `at` is differenced with itself.
+    let mut local = vec![0.0; m];
+    let (base, spent) = match problem.residuals_near(at, at, &mut local) {
+        Some(result) => {
+            result?;
+            if local.iter().any(|r| !r.is_finite()) {
+                return Err("the residuals near the base point are not finite".into());
+            }
+            (local.as_slice(), 1)
+        }
+        None => (base, 0),
+    };
     let evaluations: Vec<usize> = jacobian
         .as_mut_slice()
         .par_chunks_mut(m)
         .zip(columns.par_iter())
         .map(|(column, spec)| difference_column(problem, at, base, spec, differences, column))
         .collect::<Result<_, _>>()?;
-    Ok((jacobian, evaluations.iter().sum()))
+    Ok((jacobian, spent + evaluations.iter().sum::<usize>()))
 }
 
 /// Fills one column; returns the number of evaluations spent.
@@ -114,7 +128,10 @@ fn difference_column<P: Problem + ?Sized>(
             return None;
         }
         params[spec.index] = value;
-        let ok = problem.residuals(&params, out).is_ok() && out.iter().all(|r| r.is_finite());
+        let result = problem
+            .residuals_near(at, &params, out)
+            .unwrap_or_else(|| problem.residuals(&params, out));
+        let ok = result.is_ok() && out.iter().all(|r| r.is_finite());
         // The step actually taken, exact in floating point.
         ok.then_some(value - centre)
     };

@@ -38,4 +38,24 @@ pub trait Problem: Sync {
         let _ = (params, out);
         None
     }
+
+    /// The residuals at `params` as a finite-difference column of the
+    /// Jacobian at `base` sees them, if the problem has a cheaper map for
+    /// that; `None` (the default) means [`residuals`](Self::residuals).
+    ///
+    /// The engine differences this map only with itself (it evaluates it at
+    /// `base` too), so it may differ from `residuals` by a smooth function
+    /// of `params`: for example an inner fixed-point iteration started from
+    /// its solution at `base` and run for fewer rounds. Its derivative then
+    /// differs from the converged map's by the contraction of the rounds
+    /// left out.
+    fn residuals_near(
+        &self,
+        base: &[f64],
+        params: &[f64],
+        out: &mut [f64],
+    ) -> Option<Result<(), EvaluationError>> {
+        let _ = (base, params, out);
+        None
+    }
 }

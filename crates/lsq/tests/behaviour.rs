@@ -388,3 +388,115 @@ proptest! {
         }
     }
 }
+
+/// `r_i = a (1 + z) t_i + b - y_i` with `z` the fixed point of
+/// `z = cos(z) / 2 + b / 5` (a contraction by `sin(z) / 2`): a model with
+/// an inner iteration. `residuals` converges it from 0; `residuals_near`
+/// starts it from its solution at the base point and runs `rounds`.
+struct Dragged {
+    t: Vec<f64>,
+    y: Vec<f64>,
+    rounds: usize,
+}
+
+impl Dragged {
+    fn new(rounds: usize) -> Self {
+        let t: Vec<f64> = (0..20).map(|i| f64::from(i) * 0.1).collect();
+        let truth = Self {
+            t: t.clone(),
+            y: vec![0.0; t.len()],
+            rounds,
+        };
+        let mut y = vec![0.0; t.len()];
+        truth.model(&[2.0, 1.0], Self::solved(1.0), &mut y);
+        // Residuals that do not vanish at the optimum.
+        for (i, y) in y.iter_mut().enumerate() {
+            *y += 0.01 * (i as f64).sin();
+        }
+        Self { t, y, rounds }
+    }
+
+    fn iterate(mut z: f64, b: f64, rounds: usize) -> f64 {
+        for _ in 0..rounds {
+            z = 0.5 * z.cos() + 0.2 * b;
+        }
+        z
+    }
+
+    fn solved(b: f64) -> f64 {
+        Self::iterate(0.0, b, 200)
+    }
+
+    fn model(&self, p: &[f64], z: f64, out: &mut [f64]) {
+        for ((o, t), y) in out.iter_mut().zip(&self.t).zip(&self.y) {
+            *o = p[0] * (1.0 + z) * t + p[1] - y;
+        }
+    }
+}
+
+impl Problem for Dragged {
+    fn num_parameters(&self) -> usize {
+        2
+    }
+    fn num_residuals(&self) -> usize {
+        self.t.len()
+    }
+    fn residuals(&self, p: &[f64], out: &mut [f64]) -> Result<(), EvaluationError> {
+        self.model(p, Self::solved(p[1]), out);
+        Ok(())
+    }
+    fn residuals_near(
+        &self,
+        base: &[f64],
+        p: &[f64],
+        out: &mut [f64],
+    ) -> Option<Result<(), EvaluationError>> {
+        let z = Self::iterate(Self::solved(base[1]), p[1], self.rounds);
+        self.model(p, z, out);
+        Some(Ok(()))
+    }
+}
+
+#[test]
+fn a_near_map_differs_in_its_derivative_by_the_contraction_of_the_rounds_left_out() {
+    // k rounds from the fixed point z* give dz/db = g (1 - c^k) / (1 - c)
+    // with c = -sin(z*)/2 and g = 1/5, against g / (1 - c) converged: the
+    // relative error of the b column's fixed-point part is exactly -c^k.
+    let at = [1.5, 0.7];
+    let z = Dragged::solved(at[1]);
+    let c = -0.5 * z.sin();
+    let converged = 0.2 / (1.0 - c);
+    let parameters = [Parameter::new("a", at[0]), Parameter::new("b", at[1])];
+    for rounds in 1..=3 {
+        let problem = Dragged::new(rounds);
+        let numerical =
+            finite_difference_jacobian(&problem, &parameters, &at, Differences::Central).unwrap();
+        for (i, t) in problem.t.iter().enumerate().skip(1) {
+            // d r_i / d b = a t dz/db + 1.
+            let dz = (numerical[(i, 1)] - 1.0) / (at[0] * t);
+            let error = dz / converged - 1.0;
+            let expected = -c.powi(rounds as i32);
+            assert!(
+                (error - expected).abs() < 1e-6,
+                "rounds {rounds}, row {i}: {error:e} against {expected:e}"
+            );
+        }
+        // The a column has no inner iteration: exact.
+        for (i, t) in problem.t.iter().enumerate() {
+            assert!((numerical[(i, 0)] - (1.0 + z) * t).abs() < 1e-8);
+        }
+    }
+}
+
+#[test]
+fn a_fit_through_a_near_map_reaches_the_converged_maps_minimum() {
+    let start = [Parameter::new("a", 1.0), Parameter::new("b", 0.0)];
+    let engine = LevenbergMarquardt::default();
+    let converged = engine.minimize(&Dragged::new(200), &start).unwrap();
+    let near = engine.minimize(&Dragged::new(2), &start).unwrap();
+    assert!(near.termination.is_converged(), "{:?}", near.termination);
+    for (p, q) in near.params.iter().zip(converged.params.iter()) {
+        assert!((p - q).abs() < 1e-6, "{p} against {q}");
+    }
+    assert!((near.chi2 - converged.chi2).abs() < 1e-9 * converged.chi2);
+}
