@@ -7,7 +7,7 @@ use needle_data::read_bundle;
 use serde::{Deserialize, Serialize};
 
 use crate::error::DiagnoseError;
-use crate::fit::{Context, Fit, Fitted, MODEL_TOLERANCE, fit_model, misfit};
+use crate::fit::{Context, Fit, Fitted, Precision, fit_model, misfit};
 use crate::forward::Forward;
 use crate::model::{Baseline, Model};
 use crate::observe::{Load, Observations};
@@ -254,7 +254,7 @@ pub fn diagnose(
     let mut current = Model::new(model, &context.forward.geometry, start)?;
     // A first fit sets the weights: the probe force noise carried to the
     // markers at these parameters, or the noise itself when not stated.
-    let first = fit_model(&context, &current, &[], &[], MODEL_TOLERANCE)?;
+    let first = fit_model(&context, &current, &[], &[], Precision::Model)?;
     let noise = match campaign.noise {
         Some(_) => {
             let prediction = context
@@ -288,7 +288,7 @@ pub fn diagnose(
             }
         }
     };
-    let mut fitted = fit_model(&context, &current, &first.params, &[], MODEL_TOLERANCE)?;
+    let mut fitted = fit_model(&context, &current, &first.params, &[], Precision::Model)?;
     let mut ladder = Ladder::default();
     let mut steps = Vec::new();
     let mut added: Option<String> = None;
@@ -341,7 +341,7 @@ pub fn diagnose(
         // Candidates are refitted with the probe width held; the chosen
         // model is refitted with it free, since the width the previous
         // model fitted may have absorbed part of what the effect explains.
-        fitted = fit_model(&context, &current, &refit.params, &[], MODEL_TOLERANCE)?;
+        fitted = fit_model(&context, &current, &refit.params, &[], Precision::Model)?;
     }
     let diagnosis = steps.last().cloned().expect("at least one step");
     Ok(DiagnosisRun {

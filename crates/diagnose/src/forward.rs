@@ -34,12 +34,13 @@
 //!   misfit the 3-D truth at $\chi^2/\nu = 7$ at its own parameters
 //!   (18 on the lines nearest the free sides), against 1.07 with the
 //!   slab's own placement.
-//!   A finite-difference Jacobian's columns start each body from its own
-//!   placement at the base point instead ([`Start::Near`], `place::NEAR_ROUNDS`
-//!   rounds): the placement barely moves over a difference step, and the
-//!   columns' derivative stays within 1% of the model's own (a unit test
-//!   checks every parameter that moves the load) for about half the
-//!   back-substitutions.
+//!   The finite-difference columns of a candidate's refit and of the score
+//!   test start each body from its own placement at the base point instead
+//!   ([`Start::Near`], `place::NEAR_ROUNDS` rounds): the placement barely
+//!   moves over a difference step, and the columns' derivative stays
+//!   within 1% of the model's own (a unit test checks every parameter that
+//!   moves the load) for 3 back-substitutions per frame instead of 5 on
+//!   the plane and 4 on the slab.
 //! - Needle force sample: $F = \hat d \int_0^{L'} q(s)\,ds$ with the
 //!   inserted length $L' = L - \delta$, the entry's drag $\delta$ per unit
 //!   length interpolated in $L$ between the trial's frames.

@@ -54,7 +54,8 @@ pub(crate) const PLACEMENT_ROUNDS: usize = 4;
 pub(crate) const SLAB_PLACEMENT_ROUNDS: usize = 3;
 
 /// Rounds on each body from the base point's own placements in the
-/// columns of a finite-difference Jacobian (see `fit`). The rounds contract
+/// finite-difference columns of a candidate's refit and of the score test
+/// (see `fit::Precision`). The rounds contract
 /// the placement's error about tenfold each (1 round 13 um, 2 rounds 1.4 um,
 /// 3 rounds 0.19 um above), so the columns' derivative of the placement
 /// part is off by about a hundredth; the cold start's rounds are still

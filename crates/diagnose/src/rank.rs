@@ -42,7 +42,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::chi2::chi2_upper_tail;
 use crate::error::DiagnoseError;
-use crate::fit::{CANDIDATE_TOLERANCE, Context, Fit, Fitted, fit_model};
+use crate::fit::{Context, Fit, Fitted, Precision, fit_model};
 use crate::forward::{Placements, Start};
 use crate::model::{Model, PROBE_WIDTH};
 use crate::spec::ModelSpec;
@@ -364,7 +364,7 @@ fn refit_all(
                 &augmented,
                 &fitted.params,
                 &hold,
-                CANDIDATE_TOLERANCE,
+                Precision::Candidate,
             )?;
             // Some effects start away from their null (`out_of_plane` at
             // the full slab): far from what the data want, a refit stopped
@@ -372,7 +372,7 @@ fn refit_all(
             // From next to the null it cannot end much above it.
             if with.chi2 > fitted.chi2 {
                 let start = near_null_start(&augmented, &fitted.params);
-                let again = fit_model(context, &augmented, &start, &hold, CANDIDATE_TOLERANCE)?;
+                let again = fit_model(context, &augmented, &start, &hold, Precision::Candidate)?;
                 if again.chi2 < with.chi2 {
                     with = again;
                 }
