@@ -12,11 +12,12 @@ use needle_fem::element::ElementKind;
 use needle_fem::element::facet::simplex_mass;
 use needle_fem::element::shape::values_and_gradients;
 use needle_fem::material::{Formulation, Materials};
-use needle_fem::mesh::{BoundaryFacet, Mesh, RectangleMesh, SlabMesh};
+use needle_fem::mesh::{BoundaryFacet, Mesh, RectangleMesh};
 
 use crate::error::SynthError;
 use crate::grid::{PLANE_GRADING_LEVELS, grade, grid_lines};
-use crate::scenario::Scenario;
+use crate::scenario::{Scenario, SlabGrading};
+use crate::slab_mesh::{grade_plan, layered_slab, node_planes};
 
 /// The meshed phantom.
 pub(crate) struct Body {
@@ -55,7 +56,8 @@ impl Body {
     /// Meshes the phantom of `scenario`: grid lines on every marker row and
     /// column, on `x_lines` (needle lines, probe centres and edges) and
     /// `y_lines` (layer boundaries), each interval split to at most marker
-    /// spacing / refinement. 3-D when the scenario has `out_of_plane`;
+    /// spacing / refinement. 3-D when the scenario has `out_of_plane`,
+    /// graded as its `resolution.slab_grading` asks (`slab_mesh`);
     /// otherwise plane strain, the grid graded towards the probe edges
     /// `x_edges`, the sides and the front and back faces.
     pub fn build(
@@ -73,9 +75,14 @@ impl Body {
         let mut xs = grid_lines(p.width, p.markers.0, x_lines, target);
         let mut ys = grid_lines(p.depth, p.markers.1, y_lines, target);
         let slab = scenario.effects.out_of_plane.is_some();
-        if !slab {
+        let grading = r.slab_grading.unwrap_or(SlabGrading::DEFAULT);
+        if slab {
+            let needles: Vec<f64> = scenario.needles.plan().iter().map(|n| n.line).collect();
+            let extent = (p.width, p.depth);
+            grade_plan(&mut xs, &mut ys, extent, &needles, target, &grading);
+        } else {
             // The plane truth is graded towards its singular lines (see
-            // `grid`); the slab keeps its uniform grid.
+            // `grid`).
             let mut singular_x = vec![0.0, p.width];
             singular_x.extend_from_slice(x_edges);
             grade(&mut xs, &singular_x, target, PLANE_GRADING_LEVELS);
@@ -93,8 +100,8 @@ impl Body {
             y_lines: ys,
         };
         let (dim, npe, nodes, elements, assembly) = if slab {
-            let mut mesh: Mesh<3> =
-                SlabMesh::new(plan, p.thickness, r.layers)?.build(ElementKind::Tet10)?;
+            let planes = node_planes(p.thickness, r.layers, &grading);
+            let mut mesh: Mesh<3> = layered_slab(plan, &planes)?;
             mesh.renumber_spatially();
             mesh.assign_regions(|x| region_of(x[1]));
             let nodes = mesh.nodes().to_vec();

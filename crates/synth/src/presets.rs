@@ -50,6 +50,7 @@ impl Scenario {
                 depth_step: 0.001,
                 shaft_step: 0.0005,
                 indentation_step: 0.0005,
+                slab_grading: None,
             },
             shaft: Shaft {
                 density: 8.0,

@@ -81,6 +81,41 @@ pub struct Resolution {
     /// Indentation between two solved states of a probe with the nonlinear
     /// material (m); the linear truth is exactly proportional to it.
     pub indentation_step: f64,
+    /// Grading of the 3-D slab's mesh; absent, [`SlabGrading::DEFAULT`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub slab_grading: Option<SlabGrading>,
+}
+
+/// Levels of halving of the 3-D slab's elements towards lines where its
+/// displacement is singular or steep (`grid::grade`): level $L$ adds grid
+/// lines at $c \pm h/2^k$, $k = 1..L$, around each such coordinate $c$.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SlabGrading {
+    /// In the plane, towards the front and back faces (in y) and the
+    /// sides (in x): the clamped back face's corners and the free front
+    /// face where the needle's line load ends.
+    pub faces: usize,
+    /// In x, towards every needle line.
+    pub needle_lines: usize,
+    /// Through the thickness, towards the mid-plane (the needle's load).
+    pub mid_plane: usize,
+    /// Through the thickness, towards the top face (the markers).
+    pub top_face: usize,
+}
+
+impl SlabGrading {
+    /// The truth's slab: two levels towards the faces and sides, uniform
+    /// layers (measured in `docs/truth-world.md`, The 3-D slab).
+    pub const DEFAULT: Self = Self {
+        faces: 2,
+        needle_lines: 0,
+        mid_plane: 0,
+        top_face: 0,
+    };
+
+    /// The most levels of any kind: elements down to $h/256$.
+    pub const MAX_LEVELS: usize = 8;
 }
 
 /// Shaft force density without effects.
@@ -283,6 +318,19 @@ impl Scenario {
                 )
             },
         )?;
+        if let Some(g) = &r.slab_grading {
+            let levels = [g.faces, g.needle_lines, g.mid_plane, g.top_face];
+            c.check(
+                levels.iter().all(|&l| l <= SlabGrading::MAX_LEVELS),
+                "resolution.slab_grading",
+                || {
+                    format!(
+                        "levels must be 0 to {}, got {levels:?}",
+                        SlabGrading::MAX_LEVELS
+                    )
+                },
+            )?;
+        }
         c.positive(r.depth_step, "resolution.depth_step")?;
         c.positive(r.shaft_step, "resolution.shaft_step")?;
         c.positive(r.indentation_step, "resolution.indentation_step")?;

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use needle_synth::{EffectId, Scenario, SynthError, load_scenario};
+use needle_synth::{EffectId, Scenario, SlabGrading, SynthError, load_scenario};
 
 fn fixture(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -146,6 +146,16 @@ fn out_of_range_value_names_the_dotted_field() {
     let e = s.validate("memory").unwrap_err();
     assert!(
         matches!(e, SynthError::InvalidField { ref field, .. } if field == "effects.layered_stiffness.moduli"),
+        "{e}"
+    );
+    let mut s = Scenario::paper_default();
+    s.resolution.slab_grading = Some(SlabGrading {
+        mid_plane: SlabGrading::MAX_LEVELS + 1,
+        ..SlabGrading::DEFAULT
+    });
+    let e = s.validate("memory").unwrap_err();
+    assert!(
+        matches!(e, SynthError::InvalidField { ref field, .. } if field == "resolution.slab_grading"),
         "{e}"
     );
 }
