@@ -602,7 +602,7 @@ impl<const D: usize> Body<D> {
 
 #[cfg(test)]
 mod tests {
-    use needle_fem::{ElementKind, HyperelasticProblem, NonlinearOptions, RectangleMesh};
+    use needle_fem::{ElementKind, HyperelasticProblem, NonlinearOptions, RectangleMesh, SlabMesh};
 
     use super::*;
     use crate::series::ProbeSeries;
@@ -633,6 +633,60 @@ mod tests {
             &rest,
         )
         .unwrap()
+    }
+
+    /// The unit probe load on a Tet10 slab of two layers (the forward
+    /// model's) carries the punch's force and its moments: total 1 along
+    /// the axis, centred on the contact, the rigid punch's second moment
+    /// $a^2/8$ across the width and the even spread's $t^2/12$ through the
+    /// thickness (quadratic shape functions reproduce $x^2$ and $z^2$, so
+    /// the nodal loads keep the moments of the load they spread).
+    #[test]
+    fn slab_probe_load_has_the_patch_moments() {
+        let plan = RectangleMesh::uniform(0.075, 0.075, 8, 8).unwrap();
+        let slab = SlabMesh::new(plan, THICKNESS, 2)
+            .unwrap()
+            .build(ElementKind::Tet10)
+            .unwrap();
+        let body: Body<3> = Body::new(
+            slab,
+            Formulation::Solid,
+            THICKNESS,
+            vec![Face::Back],
+            &[[0.0375, 0.0375]],
+        )
+        .unwrap();
+        let locator = body.locator();
+        let contact = [0.03, 0.0];
+        let load = body.unit_probe_load(&locator, contact, WIDTH, 1).unwrap();
+        let nodes = body.mesh.nodes();
+        let moment = |f: &dyn Fn(&[f64; 3]) -> f64| -> f64 {
+            nodes
+                .iter()
+                .enumerate()
+                .map(|(n, x)| load[3 * n + 1] * f(x))
+                .sum()
+        };
+        let off_axis: f64 = (0..nodes.len())
+            .map(|n| load[3 * n].abs() + load[3 * n + 2].abs())
+            .sum();
+        let total = moment(&|_| 1.0);
+        assert!(
+            (total - 1.0).abs() < 1e-12 && off_axis < 1e-12,
+            "{total} {off_axis}"
+        );
+        assert!(moment(&|x| x[0] - contact[0]).abs() < 1e-12);
+        assert!(moment(&|x| x[2]).abs() < 1e-12);
+        let across = moment(&|x| (x[0] - contact[0]).powi(2));
+        let through = moment(&|x| x[2].powi(2));
+        assert!(
+            (across / (WIDTH * WIDTH / 8.0) - 1.0).abs() < 1e-9,
+            "{across}"
+        );
+        assert!(
+            (through / (THICKNESS * THICKNESS / 12.0) - 1.0).abs() < 1e-9,
+            "{through}"
+        );
     }
 
     /// Largest marker difference between `a` and `b`.

@@ -20,7 +20,8 @@
 //!   with $g$ the responses to unit forces (kept to propagate the force
 //!   noise into the marker covariance, see `whiten`).
 //! - Needle frame: a line load of density $q(s)\,\hat d$,
-//!   $q(s) = q_0 + \sum_k \Delta q_k(s)$ (effects), on the material line
+//!   $q(s) = (q_0 + \sum_k \Delta q_k(s)) \prod_k g_k(s)$ (effects add
+//!   densities $\Delta q_k$ and multiply by factors $g_k$), on the material line
 //!   whose deformed image is the needle, from the dragged-in entry point to
 //!   the tip, $s$ the spatial arclength from the entry (see `place`). Each
 //!   body finds that line in its own displacement: the plane model from the
@@ -304,13 +305,19 @@ impl Forward {
             .collect()
     }
 
-    /// Shaft density $q(s)$ (N/m) of a trial.
+    /// Shaft density $q(s) = (q_0 + \sum_k \Delta q_k(s)) \prod_k g_k(s)$
+    /// (N/m) of a trial: the effects' added densities, then their factors.
     fn density(&self, model: &Model, p: &[f64], trial: &TrialContext, point: ShaftPoint) -> f64 {
-        model
-            .effects_with(p)
-            .fold(model.baseline(p).shaft_density, |acc, (effect, own)| {
-                acc + effect.shaft_density(own, trial, point)
-            })
+        let (added, factor) = model.effects_with(p).fold(
+            (model.baseline(p).shaft_density, 1.0),
+            |(added, factor), (effect, own)| {
+                (
+                    added + effect.shaft_density(own, trial, point),
+                    factor * effect.shaft_density_factor(own, trial, point),
+                )
+            },
+        );
+        added * factor
     }
 
     fn breakpoints(&self, model: &Model, p: &[f64], length: f64) -> Vec<f64> {
@@ -897,14 +904,45 @@ mod tests {
         // measured length is inserted.
         obs.frames.retain(|f| !matches!(f.load, Load::Needle(_)));
         let model = with_effect(&forward, start, "tip_cutting_force");
-        // q0 = 10 N/m, peak 20 N/m over 5 mm: F = 10 L + 20 * 0.005 / 2.
-        let p = [25.0e3, 0.45, 10.0, 0.002, 20.0, 0.005];
+        // q0 = 10 N/m, peak twice that (relative 2) over 5 mm:
+        // F = 10 L + 20 * 0.005 / 2.
+        let p = [25.0e3, 0.45, 10.0, 0.002, 2.0, 0.005];
         let values = forward.predict(&model, &p, &obs).unwrap().values;
         let m = obs.marker_count();
         let length = 0.04 / 0.1f64.cos();
         let total = 10.0 * length + 0.05;
         assert!((values[m] - total * -(0.1f64.sin())).abs() < 1e-12);
         assert!((values[m + 1] - total * 0.1f64.cos()).abs() < 1e-12);
+    }
+
+    /// The tip peak multiplies the friction density: with friction that
+    /// grows with speed the peak grows with it,
+    /// $F = (q_0 + q_1 v)(L + A w / 2)$.
+    #[test]
+    fn the_tip_peak_scales_with_the_speed_dependent_friction() {
+        let (_, forward, start) = paper_forward();
+        let model = Model::new(
+            &ModelSpec::from_ids(&["velocity_dependent_friction", "tip_cutting_force"]).unwrap(),
+            &forward.geometry,
+            start,
+        )
+        .unwrap();
+        // q0 = 10 N/m, q1 = 500 N s/m^2, peak of relative height 1 over 6 mm.
+        let p = [25.0e3, 0.45, 10.0, 0.002, 500.0, 1.0, 0.006];
+        let length = 0.03;
+        for velocity in [0.001, 0.009] {
+            let trial = TrialContext {
+                kind: TrialKind::Needle,
+                velocity,
+                day: 2.0,
+            };
+            let force = forward.shaft_force(&model, &p, &trial, length);
+            let expected = (10.0 + 500.0 * velocity) * (length + 0.006 / 2.0);
+            assert!(
+                (force - expected).abs() < 1e-12,
+                "{velocity}: {force} vs {expected}"
+            );
+        }
     }
 
     #[test]
@@ -922,7 +960,7 @@ mod tests {
     fn the_dragged_entry_shortens_the_inserted_shaft() {
         let (obs, forward, start) = paper_forward();
         let model = with_effect(&forward, start, "tip_cutting_force");
-        let p = [25.0e3, 0.45, 10.0, 0.002, 20.0, 0.005];
+        let p = [25.0e3, 0.45, 10.0, 0.002, 2.0, 0.005];
         let values = forward.predict(&model, &p, &obs).unwrap().values;
         let m = obs.marker_count();
         let length = 0.04 / 0.1f64.cos();
@@ -951,7 +989,7 @@ mod tests {
         let model = with_effect(&forward, start, "tip_cutting_force");
         // The paper's phantom and a tip peak: the shaft drags the entry
         // in by about 2 mm.
-        let p = [25.0e3, 0.45, 10.0, 0.002, 20.0, 0.005];
+        let p = [25.0e3, 0.45, 10.0, 0.002, 2.0, 0.005];
         let m = obs.marker_count();
         let used = forward.predict(&model, &p, &obs).unwrap().values;
         forward.placement_rounds = 12;
@@ -1003,7 +1041,7 @@ mod tests {
             start,
         )
         .unwrap();
-        let p = [25.0e3, 0.45, 10.0, 0.002, 20.0, 0.005, 0.7];
+        let p = [25.0e3, 0.45, 10.0, 0.002, 2.0, 0.005, 0.7];
         let (cold, placements) = forward.predict_from(&model, &p, &obs, Start::Cold).unwrap();
         let near = |p: &[f64]| {
             let start = Start::Near {

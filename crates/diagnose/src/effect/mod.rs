@@ -3,7 +3,8 @@
 //! An effect adds named parameters to the model and changes one part of the
 //! forward model through one of the hooks of [`Effect`] (all default to "no
 //! change"): the material field ([`Effect::stiffness_factor`]), the supports
-//! ([`Effect::supports`]), the needle load ([`Effect::shaft_density`]), the
+//! ([`Effect::supports`]), the needle load ([`Effect::shaft_density`] added,
+//! [`Effect::shaft_density_factor`] multiplying), the
 //! kinematics, plane or slab ([`Effect::slab_weight`]), the constitutive
 //! law, linear or neo-Hookean ([`Effect::nonlinear_weight`]), or the
 //! measurement map ([`Effect::measured_position`]). Every effect has *null*
@@ -159,8 +160,22 @@ pub trait Effect: Send + Sync {
         0.0
     }
 
-    /// Arclengths where [`Effect::shaft_density`] kinks or jumps, for
-    /// quadrature.
+    /// Factor multiplying the whole shaft force density (the baseline's
+    /// plus every effect's added density) at a point of the needle: for a
+    /// change relative to the local friction, which grows with it when
+    /// another effect makes the friction grow (e.g. with speed).
+    fn shaft_density_factor(
+        &self,
+        parameters: &[f64],
+        trial: &TrialContext,
+        point: ShaftPoint,
+    ) -> f64 {
+        let _ = (parameters, trial, point);
+        1.0
+    }
+
+    /// Arclengths where [`Effect::shaft_density`] or
+    /// [`Effect::shaft_density_factor`] kinks or jumps, for quadrature.
     fn shaft_breakpoints(&self, parameters: &[f64], length: f64) -> Vec<f64> {
         let _ = (parameters, length);
         Vec::new()

@@ -2,9 +2,14 @@
 
 use super::{Effect, EffectParameter, Geometry, ShaftPoint, TrialContext};
 
-/// Cutting at the tip: the shaft density gains a triangular peak of height
-/// $A$ at the tip falling to zero a width $w$ behind it,
-/// $\Delta q(s) = A \max(0, 1 - (L - s)/w)$, total force $A w / 2$.
+/// Cutting at the tip: the tissue squeezed around the first millimetres of
+/// the shaft grips it harder than further back, so the local friction
+/// density is multiplied there by a triangular peak of relative height $A$
+/// at the tip falling to one a width $w$ behind it,
+/// $g(s) = 1 + A \max(0, 1 - (L - s)/w)$. The peak is relative: it scales
+/// with whatever the friction density is in the trial (a faster insertion
+/// grips harder along the whole shaft, the tip included), and adds
+/// $A\,q\,w/2$ to the base force where the density $q$ is uniform.
 pub struct TipCuttingForce;
 
 impl Effect for TipCuttingForce {
@@ -26,11 +31,12 @@ impl Effect for TipCuttingForce {
                 name: "tip_amplitude".into(),
                 null: 0.0,
                 initial: 0.0,
-                scale: 10.0,
+                scale: 1.0,
                 lower: None,
                 upper: None,
                 tested: true,
-                meaning: "peak shaft force density at the tip, added to the shaft density (N/m)",
+                meaning: "peak shaft force density at the tip relative to the shaft density \
+                          without the peak (1: twice it)",
             },
             EffectParameter {
                 name: "tip_width".into(),
@@ -45,12 +51,46 @@ impl Effect for TipCuttingForce {
         ]
     }
 
-    fn shaft_density(&self, parameters: &[f64], _trial: &TrialContext, point: ShaftPoint) -> f64 {
+    fn shaft_density_factor(
+        &self,
+        parameters: &[f64],
+        _trial: &TrialContext,
+        point: ShaftPoint,
+    ) -> f64 {
         let (amplitude, width) = (parameters[0], parameters[1]);
-        amplitude * (1.0 - (point.length - point.s) / width).max(0.0)
+        1.0 + amplitude * (1.0 - (point.length - point.s) / width).max(0.0)
     }
 
     fn shaft_breakpoints(&self, parameters: &[f64], length: f64) -> Vec<f64> {
         vec![length - parameters[1]]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use needle_data::TrialKind;
+
+    fn factor(parameters: &[f64], s: f64, length: f64) -> f64 {
+        let trial = TrialContext {
+            kind: TrialKind::Needle,
+            velocity: 0.005,
+            day: 2.0,
+        };
+        TipCuttingForce.shaft_density_factor(parameters, &trial, ShaftPoint { s, length })
+    }
+
+    #[test]
+    fn the_peak_is_relative_and_falls_to_one_a_width_behind_the_tip() {
+        let (length, width) = (0.03, 0.004);
+        let p = [1.0, width];
+        assert_eq!(factor(&p, length, length), 2.0);
+        assert!((factor(&p, length - 0.5 * width, length) - 1.5).abs() < 1e-12);
+        assert_eq!(factor(&p, length - width, length), 1.0);
+        assert_eq!(factor(&p, 0.0, length), 1.0);
+        // At the null amplitude it changes nothing anywhere.
+        for s in [0.0, 0.02, 0.029, 0.03] {
+            assert_eq!(factor(&[0.0, width], s, length), 1.0);
+        }
     }
 }
