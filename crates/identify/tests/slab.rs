@@ -66,11 +66,15 @@ fn errors(fit: &MaterialFit) -> (f64, f64) {
 /// On the 3-D truth (exact forces) the slab model recovers the material to
 /// within its discretisation and load-model bias, while the plane-strain
 /// model on the same data misreads nu by more than 0.1 (the paper default:
-/// 0.309 for 0.48).
+/// 0.309 for 0.48). The slab model has elements half the marker spacing:
+/// at the marker spacing it is off by -0.67% in E against the truth graded
+/// towards its faces (session 8; -0.76% with two layers), where against
+/// the uniform truth before, whose own error partly cancelled it, it was
+/// within 0.5%. At half the spacing: +0.27%, nu -0.005.
 #[test]
 fn slab_model_removes_the_plane_bias_in_nu() {
     let bundle = bundle_of(&slab_truth(11, 2, 2, true));
-    let slab = fit(&bundle, PlaneModel::Slab, 1, 1);
+    let slab = fit(&bundle, PlaneModel::Slab, 2, 1);
     println!("{slab}");
     let (de, dnu) = errors(&slab);
     let strain = fit(&bundle, PlaneModel::Strain, 2, 1);
