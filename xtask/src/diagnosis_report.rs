@@ -145,13 +145,16 @@ pub fn add_sections(report: &mut Report, run: &DiagnosisRun, number: &str) -> Re
                 or_dash(t.chi2_marker, format!("{:.3}", t.chi2_marker)),
                 or_dash(t.rms_force, format!("{:.2}", t.rms_force * 1e3)),
                 or_dash(t.chi2_force, format!("{:.3}", t.chi2_force)),
+                t.near_field_left_out.to_string(),
             ]
         })
         .collect();
     report.table(
         &format!(
             "{number}d Misfit per trial (mean square of the whitened residuals: about 1 \
-             where only the noise is left)"
+             where only the noise is left; a probe frame's markers near the contact, by \
+             default within one phantom thickness, are left out: there the model's \
+             idealised punch differs from any real one)"
         ),
         &[
             "trial",
@@ -159,6 +162,7 @@ pub fn add_sections(report: &mut Report, run: &DiagnosisRun, number: &str) -> Re
             "chi2 per value, marker",
             "rms force (mN)",
             "chi2 per value, force",
+            "marker positions left out near the probe",
         ],
         &trials,
     );

@@ -48,9 +48,10 @@ const PATCH_POINTS: usize = 8;
 #[derive(Debug, Clone, PartialEq, Eq)]
 struct Key(Vec<u64>);
 
-/// Marker responses to unit probe forces on one contact patch, along x and
-/// along y, keyed by the bits of the contact point and the patch width.
-type ProbeResponses = ([u64; 3], [Vec<[f64; 2]>; 2]);
+/// Marker responses to a unit probe force along x, one along y and a unit
+/// moment about z on one contact patch, keyed by the bits of the contact
+/// point and the patch width.
+type ProbeResponses = ([u64; 3], [Vec<[f64; 2]>; 3]);
 
 /// The nonlinear terms of one contact patch (see [`Body::probe_series`]),
 /// same key.
@@ -331,18 +332,18 @@ impl<const D: usize> Body<D> {
         Locator::new(&self.mesh)
     }
 
-    /// Marker displacements under unit probe forces along x and y at `tip`
-    /// (divided by the factorisation's scale), solved once per
-    /// factorisation and tip.
+    /// Marker displacements under a unit probe force along x, one along y
+    /// and a unit moment about z on the patch at `contact` (divided by the
+    /// factorisation's scale), solved once per factorisation and tip.
     pub fn probe_responses(
         &self,
         locator: &Locator<'_, D>,
         factorized: &Factorized<D>,
         contact: [f64; 2],
         width: f64,
-    ) -> Result<[Vec<[f64; 2]>; 2], DiagnoseError> {
+    ) -> Result<[Vec<[f64; 2]>; 3], DiagnoseError> {
         let bits = [contact[0].to_bits(), contact[1].to_bits(), width.to_bits()];
-        let scaled = |responses: &[Vec<[f64; 2]>; 2]| {
+        let scaled = |responses: &[Vec<[f64; 2]>; 3]| {
             responses.clone().map(|r| {
                 r.iter()
                     .map(|u| [u[0] / factorized.scale, u[1] / factorized.scale])
@@ -359,7 +360,7 @@ impl<const D: usize> Body<D> {
             return Ok(scaled(r));
         }
         let solved = self.unit_probe_solutions(locator, factorized, contact, width)?;
-        let responses = [0, 1].map(|k| self.markers(&solved[k], 1.0));
+        let responses = [0, 1, 2].map(|k| self.markers(&solved[k], 1.0));
         let out = scaled(&responses);
         probes
             .lock()
@@ -436,8 +437,9 @@ impl<const D: usize> Body<D> {
         Ok(self.hyperelastic.get_or_init(|| built))
     }
 
-    /// Solutions (not divided by the factorisation's scale) under unit
-    /// probe forces along x and along y on the patch at `contact`.
+    /// Solutions (not divided by the factorisation's scale) under a unit
+    /// probe force along x, one along y and a unit moment about z on the
+    /// patch at `contact`.
     fn unit_probe_solutions(
         &self,
         locator: &Locator<'_, D>,
@@ -445,20 +447,24 @@ impl<const D: usize> Body<D> {
         contact: [f64; 2],
         width: f64,
     ) -> Result<Vec<Vec<f64>>, DiagnoseError> {
-        let loads = [
-            self.unit_probe_load(locator, contact, width, 0)?,
-            self.unit_probe_load(locator, contact, width, 1)?,
-        ];
+        let loads = [0, 1, 2].map(|axis| self.unit_probe_load(locator, contact, width, axis));
+        let [x, y, moment] = loads;
+        let (x, y, moment) = (x?, y?, moment?);
         Ok(factorized
             .entry
             .problem
-            .displacements_many(&[&loads[0], &loads[1]])?)
+            .displacements_many(&[&x, &y, &moment])?)
     }
 
-    /// Load vector of a unit force along `axis` (0: x, 1: y) on the
-    /// probe's contact patch: a rigid flat punch of `width` along the
-    /// boundary through `contact` (through the whole thickness in 3-D),
-    /// whose contact pressure is $p(s) \propto 1/\sqrt{1 - (2s/a)^2}$.
+    /// Load vector on the probe's contact patch, a rigid flat punch of
+    /// `width` $a$ along the boundary through `contact` (through the whole
+    /// thickness in 3-D): for `axis` 0 or 1 a unit force along x or y,
+    /// whose pressure is the punch's $p(s) \propto 1/\sqrt{1 - (2s/a)^2}$;
+    /// for `axis` 2 a unit moment about z at `contact`, as the tilted
+    /// punch's normal pressure $p(s) \propto s/\sqrt{1 - (2s/a)^2}$ (no net
+    /// force). On the Gauss-Chebyshev points the latter is a force
+    /// $8 s_i / (n a^2)$ at each, whose moment $\sum 8 s_i^2 / (n a^2)$ is
+    /// exactly 1.
     fn unit_probe_load(
         &self,
         locator: &Locator<'_, D>,
@@ -467,17 +473,25 @@ impl<const D: usize> Body<D> {
         axis: usize,
     ) -> Result<Vec<f64>, DiagnoseError> {
         let mut load = vec![0.0; self.mesh.dof_count()];
-        let mut unit = [0.0; D];
-        unit[axis] = 1.0 / PATCH_POINTS as f64;
         // The patch runs along the face the contact lies on.
         let along = if contact[1] <= 0.0 || contact[1] >= self.extent[1] {
             [1.0, 0.0]
         } else {
             [0.0, 1.0]
         };
+        // Turned a quarter anticlockwise, so that `along` x `normal` = +z.
+        let normal = [-along[1], along[0]];
         for i in 0..PATCH_POINTS {
             let angle = (2 * i + 1) as f64 * std::f64::consts::PI / (2 * PATCH_POINTS) as f64;
             let s = 0.5 * width * angle.cos();
+            let mut unit = [0.0; D];
+            if axis < 2 {
+                unit[axis] = 1.0 / PATCH_POINTS as f64;
+            } else {
+                let force = 8.0 * s / (PATCH_POINTS as f64 * width * width);
+                unit[0] = force * normal[0];
+                unit[1] = force * normal[1];
+            }
             // A patch reaching past a corner is cut at the outline.
             let point = [
                 (contact[0] + s * along[0]).clamp(0.0, self.extent[0]),
@@ -689,6 +703,49 @@ mod tests {
         );
     }
 
+    /// The unit moment load carries no net force and a unit moment about
+    /// z at the contact, on the front face and on a side face, in the
+    /// plane and in the slab.
+    #[test]
+    fn probe_moment_load_is_a_unit_couple() {
+        let plan = RectangleMesh::uniform(0.075, 0.075, 8, 8).unwrap();
+        let slab = SlabMesh::new(plan, THICKNESS, 2)
+            .unwrap()
+            .build(ElementKind::Tet10)
+            .unwrap();
+        let slab: Body<3> = Body::new(
+            slab,
+            Formulation::Solid,
+            THICKNESS,
+            vec![Face::Back],
+            &[[0.0375, 0.0375]],
+        )
+        .unwrap();
+        let plane = plane_body();
+        fn couple<const D: usize>(body: &Body<D>, contact: [f64; 2]) -> [f64; 3] {
+            let load = body
+                .unit_probe_load(&body.locator(), contact, WIDTH, 2)
+                .unwrap();
+            let mut out = [0.0; 3];
+            for (n, x) in body.mesh.nodes().iter().enumerate() {
+                let [fx, fy] = [load[D * n], load[D * n + 1]];
+                out[0] += fx;
+                out[1] += fy;
+                out[2] += (x[0] - contact[0]) * fy - (x[1] - contact[1]) * fx;
+            }
+            out
+        }
+        for contact in [[0.03, 0.0], [0.075, 0.04], [0.0, 0.02]] {
+            for [fx, fy, moment] in [couple(&slab, contact), couple(&plane, contact)] {
+                assert!(
+                    fx.abs() < 1e-12 && fy.abs() < 1e-12,
+                    "{contact:?}: {fx} {fy}"
+                );
+                assert!((moment - 1.0).abs() < 1e-9, "{contact:?}: {moment}");
+            }
+        }
+    }
+
     /// Largest marker difference between `a` and `b`.
     fn gap(a: &[[f64; 2]], b: &[[f64; 2]]) -> f64 {
         a.iter()
@@ -707,7 +764,7 @@ mod tests {
             .unwrap();
         let locator = body.locator();
         let contact = [0.0375, 0.0];
-        let [gx, gy] = body
+        let [gx, gy, _] = body
             .probe_responses(&locator, &factorized, contact, WIDTH)
             .unwrap();
         let series = body

@@ -188,6 +188,9 @@ pub struct TrialMisfit {
     pub rms_force: f64,
     /// Mean square of the whitened force residuals; `NaN` without forces.
     pub chi2_force: f64,
+    /// Marker positions of probe frames left out as too near the contact
+    /// (see [`DiagnoseOptions::probe_near_field`]).
+    pub near_field_left_out: usize,
 }
 
 /// Everything a diagnosis produced.
@@ -230,6 +233,7 @@ pub fn diagnose(
         options.probe_force_samples,
         force_sigma,
         options.frames_per_trial,
+        options.probe_near_field,
     )?;
     let forward = Forward::new(
         &campaign.phantom,
@@ -549,15 +553,19 @@ fn trial_misfits(context: &Context, fitted: &Fitted) -> Vec<TrialMisfit> {
     obs.trial_ids
         .iter()
         .zip(sums)
-        .map(|(id, [(m, m2, mw), (f, f2, fw)])| TrialMisfit {
-            trial: id.clone(),
-            marker_values: m,
-            rms_marker: mean(m2, m).sqrt(),
-            chi2_marker: mean(mw, m),
-            force_values: f,
-            rms_force: mean(f2, f).sqrt(),
-            chi2_force: mean(fw, f),
-        })
+        .zip(&obs.near_field_left_out)
+        .map(
+            |((id, [(m, m2, mw), (f, f2, fw)]), &left_out)| TrialMisfit {
+                trial: id.clone(),
+                marker_values: m,
+                rms_marker: mean(m2, m).sqrt(),
+                chi2_marker: mean(mw, m),
+                force_values: f,
+                rms_force: mean(f2, f).sqrt(),
+                chi2_force: mean(fw, f),
+                near_field_left_out: left_out,
+            },
+        )
         .collect()
 }
 

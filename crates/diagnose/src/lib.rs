@@ -20,13 +20,18 @@
 //! The baseline is the paper's: a homogeneous linear elastic plane-strain
 //! T6 model of the top face with a node on every marker, the manifest's
 //! fixed faces held rigidly. A probe trial loads it with the measured tool
-//! force spread over a contact patch of width $a$ on the boundary as under
-//! a rigid flat punch,
+//! force and moment spread over a contact patch of width $a$ on the
+//! boundary as under a rigid flat punch,
 //! centred on the point of the outline nearest the tip (a blunt probe is not
 //! a point: at the marker noise its contact shape is seen tens of
-//! millimetres away, and a point force is singular under it); a needle
-//! trial with a uniform shaft density $q$ along the inserted needle, whose
-//! integral is the predicted base force. The needle's load acts on the
+//! millimetres away, and a point force is singular under it). Markers
+//! within one phantom thickness of the contact are left out of a probe
+//! frame ([`DiagnoseOptions::probe_near_field`]): there the idealised
+//! punch (even through the thickness) and a real one differ by more than
+//! the noise, and by Saint-Venant's principle the difference fades within
+//! about that distance. A needle trial loads it with a uniform shaft
+//! density $q$ along the inserted needle, whose integral is the predicted
+//! base force. The needle's load acts on the
 //! tissue it holds: the material points whose deformed positions lie on the
 //! needle, from the front face as dragged in by the shaft (millimetres in a
 //! soft phantom), found by a few fixed-point rounds per frame. Parameters: $E$, $\nu$, $q$, $a$
@@ -102,8 +107,10 @@
 //! `material_nonlinearity` is a third-order series about the linear
 //! solution, not a Newton solve, and always from the plane mesh;
 //! compression trials are ignored; the needle's bending moment and
-//! lateral forces are not modelled; the probe force is taken as measured
-//! (its noise enters the covariance, not the parameters).
+//! lateral forces are not modelled; the probe force and moment are taken
+//! as measured (the force's noise enters the covariance, not the
+//! parameters; the moment's noise, which the bundle does not state, is
+//! neglected, and the moment does not enter the neo-Hookean terms).
 
 mod body;
 mod chi2;

@@ -3,8 +3,10 @@
 //! sensor sample.
 //!
 //! The load at a frame comes from `tool.csv` interpolated linearly at the
-//! frame time. A probe's force is the mean of the `probe_force_samples`
-//! sensor samples nearest in time, so its noise is `force_sigma / sqrt(k)`.
+//! frame time. A probe's force and moment are the means of the
+//! `probe_force_samples` sensor samples nearest in time, so the force's
+//! noise is `force_sigma / sqrt(k)`; the moment, measured about the tip, is
+//! moved to the contact point on the outline.
 //! A needle's shaft runs along its axis $\hat d = (-\sin\theta, \cos\theta)$
 //! from the line's crossing of the front face $y = 0$ to the tip, a length
 //! $L = y_\text{tip} / \cos\theta$ (the forward model shortens it by the
@@ -21,10 +23,12 @@ pub(crate) enum Load {
     /// Nothing touches the slab (needle not inserted yet).
     Free,
     /// A probe pushing with `force` (N), whose noise is `force_sigma` per
-    /// component, on the material point `contact` of the boundary.
+    /// component, and `moment` about z (N m, about `contact`), on the
+    /// material point `contact` of the boundary.
     Probe {
         contact: [f64; 2],
         force: [f64; 2],
+        moment: f64,
         force_sigma: f64,
     },
     /// A needle inserted by `length` along `direction` from `entry`.
@@ -67,18 +71,27 @@ pub(crate) struct Observations {
     pub rest: Vec<[f64; 2]>,
     pub frames: Vec<Frame>,
     pub forces: Vec<ForceSample>,
+    /// Per trial, the marker positions of probe frames left out as too
+    /// near the contact (see [`crate::DiagnoseOptions::probe_near_field`]).
+    pub near_field_left_out: Vec<usize>,
 }
 
 impl Observations {
     /// The observations of every probe and needle trial of `campaign`,
     /// keeping at most `frames_per_trial` camera frames of each (evenly
-    /// spaced, the last always kept; 0 keeps all).
+    /// spaced, the last always kept; 0 keeps all), and leaving out a probe
+    /// frame's markers closer to the contact than `probe_near_field` times
+    /// the phantom's thickness.
     pub fn from_campaign(
         campaign: &Campaign,
         probe_force_samples: usize,
         force_sigma: f64,
         frames_per_trial: usize,
+        probe_near_field: f64,
     ) -> Result<Self, DiagnoseError> {
+        // Markers at exactly the radius (a grid spaced at half the
+        // thickness has some) stay in.
+        let near_field = probe_near_field * campaign.phantom.thickness * (1.0 - 1e-9);
         let rest: Vec<[f64; 2]> = campaign
             .markers_rest
             .as_slice()
@@ -91,6 +104,7 @@ impl Observations {
             rest,
             frames: Vec::new(),
             forces: Vec::new(),
+            near_field_left_out: Vec::new(),
         };
         for data in &campaign.trials {
             let trial = &data.trial;
@@ -104,6 +118,7 @@ impl Observations {
                 velocity: trial.velocity,
                 day: trial.day,
             });
+            out.near_field_left_out.push(0);
             let fail = |message: String| DiagnoseError::TrialGeometry {
                 bundle: campaign.name.clone(),
                 trial: trial.id.clone(),
@@ -118,15 +133,21 @@ impl Observations {
                     let load = match trial.kind {
                         TrialKind::Probe => {
                             let pose = interpolate(&data.tool, frame.t);
-                            let (force, count) =
-                                mean_force_near(&data.tool, frame.t, probe_force_samples);
+                            let (force, tip_moment, count) =
+                                mean_load_near(&data.tool, frame.t, probe_force_samples);
+                            let tip = [pose.tip_x, pose.tip_y];
+                            let contact = nearest_boundary_point(
+                                tip,
+                                campaign.phantom.width,
+                                campaign.phantom.depth,
+                            );
+                            // The bundle's moment is about the tip; move it
+                            // to the contact point the load is spread about.
+                            let arm = [tip[0] - contact[0], tip[1] - contact[1]];
                             Load::Probe {
-                                contact: nearest_boundary_point(
-                                    [pose.tip_x, pose.tip_y],
-                                    campaign.phantom.width,
-                                    campaign.phantom.depth,
-                                ),
+                                contact,
                                 force,
+                                moment: tip_moment + arm[0] * force[1] - arm[1] * force[0],
                                 force_sigma: force_sigma / (count as f64).sqrt(),
                             }
                         }
@@ -140,6 +161,13 @@ impl Observations {
                         let marker = campaign.markers_rest.index_of(id).ok_or_else(|| {
                             fail(format!("marker {id} is not in markers_rest.csv"))
                         })?;
+                        if let Load::Probe { contact, .. } = load {
+                            let rest = out.rest[marker];
+                            if (rest[0] - contact[0]).hypot(rest[1] - contact[1]) < near_field {
+                                out.near_field_left_out[index] += 1;
+                                continue;
+                            }
+                        }
                         markers.push((marker, position));
                     }
                     out.frames.push(Frame {
@@ -237,18 +265,20 @@ fn interpolate(tool: &[ToolSample], t: f64) -> ToolSample {
     }
 }
 
-/// Mean force of the `count` samples nearest to `t`, and how many there were.
-fn mean_force_near(tool: &[ToolSample], t: f64, count: usize) -> ([f64; 2], usize) {
+/// Mean force and moment of the `count` samples nearest to `t`, and how
+/// many there were.
+fn mean_load_near(tool: &[ToolSample], t: f64, count: usize) -> ([f64; 2], f64, usize) {
     let mut order: Vec<usize> = (0..tool.len()).collect();
     order.sort_by(|&a, &b| (tool[a].t - t).abs().total_cmp(&(tool[b].t - t).abs()));
     order.truncate(count);
     let n = order.len();
-    let mut force = [0.0; 2];
+    let (mut force, mut moment) = ([0.0; 2], 0.0);
     for &k in &order {
         force[0] += tool[k].fx / n as f64;
         force[1] += tool[k].fy / n as f64;
+        moment += tool[k].mz / n as f64;
     }
-    (force, n)
+    (force, moment, n)
 }
 
 /// The point of the phantom's outline $[0, w] \times [0, d]$ nearest to
@@ -290,7 +320,95 @@ fn shaft(pose: &ToolSample) -> Result<Option<Shaft>, String> {
 
 #[cfg(test)]
 mod tests {
-    use super::{nearest_boundary_point, thinned};
+    use needle_data::{BundleBuilder, Campaign, MarkerRest, Phantom, ToolSample, Trial, TrialKind};
+
+    use super::{Load, Observations, nearest_boundary_point, thinned};
+
+    /// A probe indented 1 mm at x = 30 mm (force (0.05, 0.2) N, moment
+    /// 1e-5 N m about its tip) and a needle trial, each with one frame of
+    /// four markers: on the contact, at exactly one thickness (7.5 mm)
+    /// from it along the face, 5.8 mm from it, and 20 mm deep.
+    fn probe_campaign() -> Campaign {
+        let mut builder = BundleBuilder::new(
+            "near",
+            Phantom {
+                width: 0.075,
+                depth: 0.075,
+                thickness: 0.0075,
+                fixed: vec![needle_data::Face::Back],
+            },
+        );
+        let points = [[0.03, 0.0], [0.0375, 0.0], [0.035, 0.003], [0.03, 0.02]];
+        builder.markers_rest(
+            points
+                .iter()
+                .enumerate()
+                .map(|(id, p)| MarkerRest {
+                    id: id as u32,
+                    x: p[0],
+                    y: p[1],
+                })
+                .collect(),
+        );
+        for (id, kind) in [("probe", TrialKind::Probe), ("needle", TrialKind::Needle)] {
+            let trial = builder.trial(Trial {
+                id: id.into(),
+                kind,
+                velocity: 0.001,
+                day: 0.0,
+            });
+            trial.tool.push(ToolSample {
+                t: 0.0,
+                tip_x: 0.03,
+                tip_y: 0.001,
+                theta: 0.0,
+                fx: 0.05,
+                fy: 0.2,
+                mz: 1e-5,
+            });
+            let frame = points.iter().enumerate().map(|(id, p)| (id as u32, *p));
+            trial.markers_mut().push_frame(0, 0.0, frame).unwrap();
+        }
+        builder.finish()
+    }
+
+    #[test]
+    fn probe_frames_leave_out_the_markers_within_the_near_field() {
+        let campaign = probe_campaign();
+        let kept = |obs: &Observations, trial: usize| -> Vec<usize> {
+            let frame = obs.frames.iter().find(|f| f.trial == trial).unwrap();
+            frame.markers.iter().map(|&(m, _)| m).collect()
+        };
+        let obs = Observations::from_campaign(&campaign, 1, 0.005, 0, 1.0).unwrap();
+        // The marker at exactly one thickness stays; the needle keeps all.
+        assert_eq!(kept(&obs, 0), vec![1, 3]);
+        assert_eq!(kept(&obs, 1), vec![0, 1, 2, 3]);
+        assert_eq!(obs.near_field_left_out, vec![2, 0]);
+        let all = Observations::from_campaign(&campaign, 1, 0.005, 0, 0.0).unwrap();
+        assert_eq!(kept(&all, 0), vec![0, 1, 2, 3]);
+        assert_eq!(all.near_field_left_out, vec![0, 0]);
+        let wider = Observations::from_campaign(&campaign, 1, 0.005, 0, 2.0).unwrap();
+        assert_eq!(kept(&wider, 0), vec![3]);
+    }
+
+    /// The bundle's moment is about the tip, 1 mm inside the face; about
+    /// the contact point on the face it gains $-d_y F_x$.
+    #[test]
+    fn probe_moment_is_moved_to_the_contact() {
+        let obs = Observations::from_campaign(&probe_campaign(), 1, 0.005, 0, 1.0).unwrap();
+        let Load::Probe {
+            contact,
+            force,
+            moment,
+            ..
+        } = obs.frames[0].load
+        else {
+            panic!("the first frame is the probe's");
+        };
+        assert_eq!(contact, [0.03, 0.0]);
+        assert_eq!(force, [0.05, 0.2]);
+        assert!((moment - (1e-5 - 0.001 * 0.05)).abs() < 1e-15, "{moment}");
+    }
 
     #[test]
     fn probe_contact_is_the_nearest_point_of_the_outline() {

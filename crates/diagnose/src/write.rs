@@ -3,7 +3,8 @@
 //! `residuals_forces.csv` (one row per residual with every variable it can
 //! be plotted against: time, tip depth, velocity, day, position, distance
 //! from the tool, radius from the image centre), and `residuals_trials.csv`
-//! (the misfit of every trial).
+//! (the misfit of every trial, and the marker positions left out near
+//! the probes).
 
 use std::path::Path;
 
@@ -152,6 +153,7 @@ pub fn write_outputs(run: &DiagnosisRun, out_dir: &Path) -> Result<(), DiagnoseE
                 t.force_values.to_string(),
                 t.rms_force.to_string(),
                 t.chi2_force.to_string(),
+                t.near_field_left_out.to_string(),
             ]
         })
         .collect();
@@ -165,6 +167,7 @@ pub fn write_outputs(run: &DiagnosisRun, out_dir: &Path) -> Result<(), DiagnoseE
             "force_values",
             "rms_force",
             "chi2_force",
+            "near_field_left_out",
         ],
         trials,
     )
