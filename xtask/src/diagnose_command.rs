@@ -34,6 +34,10 @@ pub struct DiagnoseArgs {
     /// spacing (rerun with a larger value to check mesh convergence).
     #[arg(long, default_value_t = DiagnoseOptions::default().refinement)]
     refinement: usize,
+    /// The `out_of_plane` slab: elements this many times smaller than the
+    /// marker spacing in the plane.
+    #[arg(long, default_value_t = DiagnoseOptions::default().slab_refinement)]
+    slab_refinement: usize,
     /// Output folder (must not exist); default: a new folder under `out/`.
     #[arg(long)]
     out: Option<PathBuf>,
@@ -61,6 +65,7 @@ pub fn run(args: &DiagnoseArgs) -> Result<(), String> {
         add_recommended: args.add_recommended,
         frames_per_trial: args.frames_per_trial,
         refinement: args.refinement,
+        slab_refinement: args.slab_refinement,
         ..DiagnoseOptions::default()
     };
     sequential_linear_algebra();
