@@ -649,6 +649,23 @@ mod tests {
         .unwrap()
     }
 
+    /// A Tet10 slab of two layers on an 8 x 8 plan, one marker.
+    fn slab_body() -> Body<3> {
+        let plan = RectangleMesh::uniform(0.075, 0.075, 8, 8).unwrap();
+        let slab = SlabMesh::new(plan, THICKNESS, 2)
+            .unwrap()
+            .build(ElementKind::Tet10)
+            .unwrap();
+        Body::new(
+            slab,
+            Formulation::Solid,
+            THICKNESS,
+            vec![Face::Back],
+            &[[0.0375, 0.0375]],
+        )
+        .unwrap()
+    }
+
     /// The unit probe load on a Tet10 slab of two layers (the forward
     /// model's) carries the punch's force and its moments: total 1 along
     /// the axis, centred on the contact, the rigid punch's second moment
@@ -657,19 +674,7 @@ mod tests {
     /// the nodal loads keep the moments of the load they spread).
     #[test]
     fn slab_probe_load_has_the_patch_moments() {
-        let plan = RectangleMesh::uniform(0.075, 0.075, 8, 8).unwrap();
-        let slab = SlabMesh::new(plan, THICKNESS, 2)
-            .unwrap()
-            .build(ElementKind::Tet10)
-            .unwrap();
-        let body: Body<3> = Body::new(
-            slab,
-            Formulation::Solid,
-            THICKNESS,
-            vec![Face::Back],
-            &[[0.0375, 0.0375]],
-        )
-        .unwrap();
+        let body = slab_body();
         let locator = body.locator();
         let contact = [0.03, 0.0];
         let load = body.unit_probe_load(&locator, contact, WIDTH, 1).unwrap();
@@ -708,19 +713,7 @@ mod tests {
     /// plane and in the slab.
     #[test]
     fn probe_moment_load_is_a_unit_couple() {
-        let plan = RectangleMesh::uniform(0.075, 0.075, 8, 8).unwrap();
-        let slab = SlabMesh::new(plan, THICKNESS, 2)
-            .unwrap()
-            .build(ElementKind::Tet10)
-            .unwrap();
-        let slab: Body<3> = Body::new(
-            slab,
-            Formulation::Solid,
-            THICKNESS,
-            vec![Face::Back],
-            &[[0.0375, 0.0375]],
-        )
-        .unwrap();
+        let slab = slab_body();
         let plane = plane_body();
         fn couple<const D: usize>(body: &Body<D>, contact: [f64; 2]) -> [f64; 3] {
             let load = body
