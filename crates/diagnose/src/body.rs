@@ -447,8 +447,8 @@ impl<const D: usize> Body<D> {
         contact: [f64; 2],
         width: f64,
     ) -> Result<Vec<Vec<f64>>, DiagnoseError> {
-        let loads = [0, 1, 2].map(|axis| self.unit_probe_load(locator, contact, width, axis));
-        let [x, y, moment] = loads;
+        let [x, y, moment] =
+            [0, 1, 2].map(|axis| self.unit_probe_load(locator, contact, width, axis));
         let (x, y, moment) = (x?, y?, moment?);
         Ok(factorized
             .entry
