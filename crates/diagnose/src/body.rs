@@ -359,7 +359,7 @@ impl<const D: usize> Body<D> {
         {
             return Ok(scaled(r));
         }
-        let solved = self.unit_probe_solutions(locator, factorized, contact, width)?;
+        let solved = self.unit_probe_solutions(locator, factorized, contact, width, &[0, 1, 2])?;
         let responses = [0, 1, 2].map(|k| self.markers(&solved[k], 1.0));
         let out = scaled(&responses);
         probes
@@ -390,7 +390,7 @@ impl<const D: usize> Body<D> {
         {
             return Ok(series.scaled(factorized.scale));
         }
-        let solved = self.unit_probe_solutions(locator, factorized, contact, width)?;
+        let solved = self.unit_probe_solutions(locator, factorized, contact, width, &[0, 1])?;
         let (gx, gy) = (&solved[0], &solved[1]);
         let sum: Vec<f64> = gx.iter().zip(gy).map(|(a, b)| a + b).collect();
         let difference: Vec<f64> = gx.iter().zip(gy).map(|(a, b)| a - b).collect();
@@ -437,23 +437,23 @@ impl<const D: usize> Body<D> {
         Ok(self.hyperelastic.get_or_init(|| built))
     }
 
-    /// Solutions (not divided by the factorisation's scale) under a unit
-    /// probe force along x, one along y and a unit moment about z on the
-    /// patch at `contact`.
+    /// Solutions (not divided by the factorisation's scale) under the
+    /// unit loads `axes` (see [`Body::unit_probe_load`]) on the patch at
+    /// `contact`.
     fn unit_probe_solutions(
         &self,
         locator: &Locator<'_, D>,
         factorized: &Factorized<D>,
         contact: [f64; 2],
         width: f64,
+        axes: &[usize],
     ) -> Result<Vec<Vec<f64>>, DiagnoseError> {
-        let [x, y, moment] =
-            [0, 1, 2].map(|axis| self.unit_probe_load(locator, contact, width, axis));
-        let (x, y, moment) = (x?, y?, moment?);
-        Ok(factorized
-            .entry
-            .problem
-            .displacements_many(&[&x, &y, &moment])?)
+        let loads = axes
+            .iter()
+            .map(|&axis| self.unit_probe_load(locator, contact, width, axis))
+            .collect::<Result<Vec<_>, _>>()?;
+        let loads: Vec<&[f64]> = loads.iter().map(Vec::as_slice).collect();
+        Ok(factorized.entry.problem.displacements_many(&loads)?)
     }
 
     /// Load vector on the probe's contact patch, a rigid flat punch of

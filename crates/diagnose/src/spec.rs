@@ -206,3 +206,34 @@ impl DiagnoseOptions {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::DiagnoseOptions;
+    use crate::error::DiagnoseError;
+
+    #[test]
+    fn probe_near_field_must_be_finite_and_not_negative() {
+        for bad in [-1.0, f64::NAN, f64::INFINITY] {
+            let options = DiagnoseOptions {
+                probe_near_field: bad,
+                ..DiagnoseOptions::default()
+            };
+            assert!(
+                matches!(
+                    options.validate(),
+                    Err(DiagnoseError::InvalidOption {
+                        field: "probe_near_field",
+                        ..
+                    })
+                ),
+                "{bad}"
+            );
+        }
+        let none_left_out = DiagnoseOptions {
+            probe_near_field: 0.0,
+            ..DiagnoseOptions::default()
+        };
+        assert!(none_left_out.validate().is_ok());
+    }
+}
