@@ -297,7 +297,9 @@ pub fn diagnose(
     let mut steps = Vec::new();
     let mut added: Option<String> = None;
     loop {
-        let ranked = rank_candidates(&context, &current, &fitted)?;
+        let naming_ratio = options.min_explained
+            * unexplained_misfit(&fitted.fit, fitted.dof, options.chi2_spread);
+        let ranked = rank_candidates(&context, &current, &fitted, naming_ratio)?;
         let (verdict, threshold_p) = verdict(&ranked, &fitted, options);
         let diagnosis = Diagnosis {
             bundle: campaign.name.clone(),

@@ -66,12 +66,14 @@
 //!   (see `rank`).
 //! - **Refit**: the model with the effect added; likelihood ratio
 //!   $\Lambda = \chi^2_\text{now} - \chi^2_\text{with} \sim \chi^2_{k'}$,
-//!   AIC and BIC. The three best candidates by score are refitted, and any
-//!   other whose score p-value is below 0.05 and whose score reaches a
-//!   tenth of the leaders' best likelihood ratio (`Candidate::refitted`):
-//!   a refit is the costliest work of a step, and the score is the local
-//!   form of the likelihood ratio, so a candidate far behind by score is
-//!   hardly the one that explains most by refit. Refits stop at a relative
+//!   AIC and BIC. The best candidate by score is refitted, and any other
+//!   whose score p-value is below 0.05 and whose score reaches a tenth of
+//!   the larger of the leader's likelihood ratio and the least one the
+//!   verdict names an effect with (`Candidate::refitted`): a refit is the
+//!   costliest work of a step, and the score is the local form of the
+//!   likelihood ratio, so a candidate far behind by score is hardly the
+//!   one that explains most by refit, nor one that could be named. Refits
+//!   stop at a relative
 //!   tolerance of $10^{-5}$ (their likelihood ratio is then a lower bound),
 //!   and their Jacobians place the needle loads from the base point's
 //!   placements (within 1% of the model's own derivative, for fewer

@@ -20,15 +20,19 @@
 //! The Jacobian in the current parameters is the same for every candidate
 //! (each effect is silent at its null), so it is computed once per step.
 //!
-//! **Refit.** The three best candidates by score are refitted first. The
-//! others are refitted only if their score p-value is below 0.05 *and*
-//! their score is at least a tenth of the largest likelihood ratio the
-//! leaders reached: the score is the local (quadratic) prediction of the
-//! likelihood ratio, so a candidate below that bar would have to explain
-//! ten times what its score says to be named (on the quick campaign the
-//! ratio of the two stays within 1.0 to 2.2). The rest keep their score
-//! alone (`refitted: false`), which saves the costliest work of a step: a
-//! refit is a whole fit. The model with the effect added is fitted from
+//! **Refit.** The best candidate by score is refitted first. Each other
+//! is refitted only if its score p-value is below 0.05 *and* its score is
+//! at least a tenth of the larger of the leader's likelihood ratio and the
+//! least likelihood ratio the verdict names an effect with (its share
+//! `min_explained` of the misfit left to explain): the score is the local
+//! (quadratic) prediction of the likelihood ratio, so a candidate below
+//! that bar would have to explain ten times what its score says to
+//! overtake the leader or to be named at all (the ratio of the two stays
+//! within 1.0 to 2.2 on the quick campaign, 0.99 to 1.09 on the default).
+//! The rest keep their score alone (`refitted: false`), which saves the
+//! costliest work of a step: a refit is a whole fit.
+//!
+//! The model with the effect added is fitted from
 //! $(\hat\theta, \psi_\text{initial})$, and again from $\hat\theta$ with
 //! $\psi$ next to its null if that refit ends above the current
 //! $\chi^2$; the likelihood ratio
@@ -81,15 +85,12 @@ pub(crate) struct Ranked {
     pub fitted: Option<Fitted>,
 }
 
-/// This many candidates, the leaders by score p-value, are refitted at
-/// every step (a local score can understate an effect).
-const REFIT_LEADERS: usize = 3;
-/// Other candidates are refitted only with a score p-value below this (far
-/// above any Bonferroni level, so no candidate that could be named is
-/// skipped for want of a score) ...
+/// Candidates after the leader by score are refitted only with a score
+/// p-value below this (far above any Bonferroni level, so no candidate that
+/// could be named is skipped for want of a score) ...
 const REFIT_SCORE_P: f64 = 0.05;
-/// ... and a score at least this fraction of the leaders' largest
-/// likelihood ratio.
+/// ... and a score at least this fraction of the larger of the leader's
+/// likelihood ratio and the least one an effect is named with.
 const REFIT_SCORE_FRACTION: f64 = 0.1;
 
 /// The whitened residuals of the current fit and their Jacobian in the
@@ -245,14 +246,16 @@ fn score_test(
 }
 
 /// Scores every catalog effect not in `current`, refits those worth it
-/// (the [`REFIT_LEADERS`] best, then any other with a score p-value below
+/// (the best by score, then any other with a score p-value below
 /// [`REFIT_SCORE_P`] and a score of at least [`REFIT_SCORE_FRACTION`] of
-/// the leaders' best likelihood ratio), and returns them all, best first:
-/// refitted ones by likelihood-ratio p-value, then by score.
+/// the larger of the leader's likelihood ratio and `naming_ratio`, the
+/// least likelihood ratio an effect is named with), and returns them all,
+/// best first: refitted ones by likelihood-ratio p-value, then by score.
 pub(crate) fn rank_candidates(
     context: &Context,
     current: &Model,
     fitted: &Fitted,
+    naming_ratio: f64,
 ) -> Result<Vec<Ranked>, DiagnoseError> {
     let shared = CurrentJacobian::new(context, current, fitted)?;
     let mut scored = crate::effect::catalog()
@@ -286,16 +289,15 @@ pub(crate) fn rank_candidates(
         (a.candidate.score_p.total_cmp(&b.candidate.score_p))
             .then(b.candidate.score.total_cmp(&a.candidate.score))
     });
-    let others = scored.split_off(REFIT_LEADERS.min(scored.len()));
+    let others = scored.split_off(1.min(scored.len()));
     let mut out = refit_all(context, current, fitted, scored)?;
-    let best_ratio = out
+    let bar = out
         .iter()
         .filter_map(|r| r.candidate.likelihood_ratio)
-        .fold(0.0, f64::max);
-    let (worth, rest): (Vec<Scored>, Vec<Scored>) = others.into_iter().partition(|s| {
-        s.candidate.score_p < REFIT_SCORE_P
-            && s.candidate.score >= REFIT_SCORE_FRACTION * best_ratio
-    });
+        .fold(naming_ratio, f64::max);
+    let (worth, rest): (Vec<Scored>, Vec<Scored>) = others
+        .into_iter()
+        .partition(|s| worth_refitting(&s.candidate, bar));
     out.extend(refit_all(context, current, fitted, worth)?);
     out.extend(rest.into_iter().map(|s| Ranked {
         candidate: s.candidate,
@@ -308,6 +310,13 @@ pub(crate) fn rank_candidates(
             .then(b.candidate.score.total_cmp(&a.candidate.score))
     });
     Ok(out)
+}
+
+/// Whether a candidate after the leader is refitted, `bar` being the
+/// larger of the leader's likelihood ratio and the least one an effect is
+/// named with.
+fn worth_refitting(candidate: &Candidate, bar: f64) -> bool {
+    candidate.score_p < REFIT_SCORE_P && candidate.score >= REFIT_SCORE_FRACTION * bar
 }
 
 /// A candidate scored, with its augmented model.
@@ -399,6 +408,38 @@ fn refit_all(
 mod tests {
     use super::*;
     use crate::model::test_model;
+
+    #[test]
+    fn only_candidates_within_a_tenth_of_the_bar_by_score_are_refitted() {
+        let fit = Fit {
+            rms_marker: 1.0,
+            rms_force: 1.0,
+            chi2_marker: 1.0,
+            chi2_force: 1.0,
+        };
+        let candidate = |score: f64, score_p: f64| Candidate {
+            effect: "layered_stiffness".into(),
+            score,
+            score_p,
+            score_dof: 1,
+            refitted: false,
+            likelihood_ratio: None,
+            likelihood_ratio_p: None,
+            aic: None,
+            bic: None,
+            fit_with: fit,
+        };
+        // Scores like those behind the leader at the default campaign's
+        // last step (183, 47), against a bar of 1100.
+        let bar = 1100.0;
+        assert!(worth_refitting(&candidate(183.0, 1e-41), bar));
+        assert!(worth_refitting(&candidate(110.0, 1e-20), bar));
+        assert!(!worth_refitting(&candidate(109.0, 1e-20), bar));
+        assert!(!worth_refitting(&candidate(47.0, 1e-12), bar));
+        // Significant enough by score, but not below the refit p-value.
+        assert!(!worth_refitting(&candidate(3.0, 0.08), 20.0));
+        assert!(worth_refitting(&candidate(4.0, 0.045), 20.0));
+    }
 
     #[test]
     fn a_null_on_a_bound_starts_just_inside_it() {
