@@ -429,12 +429,13 @@ mod tests {
             bic: None,
             fit_with: fit,
         };
-        // Scores like those behind the leader at the default campaign's
-        // last step (183, 47), against a bar of 1100.
-        let bar = 1100.0;
+        // The default campaign's last step: the least ratio named is 870
+        // (0.2 of the misfit left), above the leader's 322; behind the
+        // leader, scores of 183 and 47.
+        let bar = 870.0;
         assert!(worth_refitting(&candidate(183.0, 1e-41), bar));
-        assert!(worth_refitting(&candidate(110.0, 1e-20), bar));
-        assert!(!worth_refitting(&candidate(109.0, 1e-20), bar));
+        assert!(worth_refitting(&candidate(87.0, 1e-20), bar));
+        assert!(!worth_refitting(&candidate(86.9, 1e-20), bar));
         assert!(!worth_refitting(&candidate(47.0, 1e-12), bar));
         // Significant enough by score, but not below the refit p-value.
         assert!(!worth_refitting(&candidate(3.0, 0.08), 20.0));
