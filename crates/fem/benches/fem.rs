@@ -107,6 +107,18 @@ fn bench_slab(c: &mut Criterion) {
                     .unwrap()
             })
         });
+        // The same matrix element by element: what a body with several
+        // materials costs, and the homogeneous path's peer.
+        group.bench_function(format!("assemble_elementwise/{dofs}"), |b| {
+            let mut k = problem.assembler().pattern().zeros();
+            let constitutive = [Some(materials().0[0].constitutive(Formulation::Solid))];
+            b.iter(|| {
+                problem
+                    .assembler()
+                    .assemble_into(&constitutive, &mut k)
+                    .unwrap()
+            })
+        });
         group.bench_function(format!("assemble_factorize/{dofs}"), |b| {
             b.iter(|| problem.factorize(&materials()).unwrap())
         });

@@ -21,6 +21,13 @@
 //!   for a homogeneous body and, in general,
 //!   $\partial K/\partial p = \sum_e \int B^T (\partial D/\partial p) B$,
 //!   assembled by the same code with $\partial D/\partial p$ in place of $D$.
+//! - **Homogeneous bodies.** $D = a\,D_\lambda + \mu\,D_\mu$ (Lamé's
+//!   $\lambda$, or its plane-stress counterpart, and $\mu$), so
+//!   $K = a\,K_\lambda + \mu\,K_\mu$ with the two matrices assembled once
+//!   per mesh: a new $E$ or $\nu$ of a body with one material costs one
+//!   pass over the values instead of every element's integral.
+
+use std::sync::{Arc, OnceLock};
 
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use nalgebra::SMatrix;
@@ -29,7 +36,7 @@ use rayon::prelude::*;
 use crate::element::ElementKind;
 use crate::element::stiffness::{ReferenceGradients, element_stiffness};
 use crate::error::FemError;
-use crate::material::{Constitutive, Formulation, Materials, Parameter};
+use crate::material::{Constitutive, Formulation, Materials, Parameter, lame_basis};
 use crate::mesh::Mesh;
 
 /// The sparsity pattern of the global stiffness matrix of a mesh, shared by
@@ -178,6 +185,9 @@ pub struct Assembler<const D: usize> {
     formulation: Formulation,
     pattern: StiffnessPattern,
     ranges: Vec<NodeRange>,
+    /// The values of $K_\lambda$ and $K_\mu$, made at the first
+    /// homogeneous assembly and shared by clones.
+    lame_matrices: Arc<OnceLock<[Vec<f64>; 2]>>,
 }
 
 impl<const D: usize> Assembler<D> {
@@ -217,6 +227,7 @@ impl<const D: usize> Assembler<D> {
             formulation,
             pattern,
             ranges,
+            lame_matrices: Arc::new(OnceLock::new()),
         })
     }
 
@@ -264,12 +275,48 @@ impl<const D: usize> Assembler<D> {
         matrix: &mut SparseColMat<usize, f64>,
     ) -> Result<(), FemError> {
         self.check_materials(materials)?;
+        if let Some(first) = materials.0.first()
+            && materials.0.iter().all(|m| m == first)
+        {
+            if !self.pattern.matches(matrix) {
+                return Err(FemError::InvalidMesh(
+                    "matrix does not have the assembler's sparsity pattern".into(),
+                ));
+            }
+            let [k_lambda, k_mu] = self.lame_matrices()?;
+            let (a, mu) = first.lame_coefficients(self.formulation);
+            for ((value, l), m) in matrix.val_mut().iter_mut().zip(k_lambda).zip(k_mu) {
+                *value = a * l + mu * m;
+            }
+            return Ok(());
+        }
         let per_region: Vec<Option<Constitutive>> = materials
             .0
             .iter()
             .map(|m| Some(m.constitutive(self.formulation)))
             .collect();
         self.assemble_into(&per_region, matrix)
+    }
+
+    /// The values of $K_\lambda$ and $K_\mu$ (every element with
+    /// $D_\lambda$, then with $D_\mu$).
+    fn lame_matrices(&self) -> Result<&[Vec<f64>; 2], FemError> {
+        if let Some(matrices) = self.lame_matrices.get() {
+            return Ok(matrices);
+        }
+        let mut assembled = [0, 1].map(|_| self.pattern.zeros());
+        for (which, matrix) in assembled.iter_mut().enumerate() {
+            let basis = vec![Some(lame_basis(self.formulation, which)); self.region_count()];
+            self.assemble_into(&basis, matrix)?;
+        }
+        Ok(self
+            .lame_matrices
+            .get_or_init(|| assembled.map(|m| m.val().to_vec())))
+    }
+
+    /// Regions the mesh's elements refer to.
+    fn region_count(&self) -> usize {
+        self.mesh.regions().iter().max().map_or(0, |r| r + 1)
     }
 
     /// The derivative $\partial K/\partial p$ with respect to parameter `p`

@@ -184,6 +184,27 @@ impl Material {
 
 /// Assembles $D$ (or its derivative, which has the same structure) from
 /// $\lambda$, $\mu$ and $\lambda^*$ (or their derivatives).
+impl Material {
+    /// The coefficients $(a, \mu)$ with $D = a\,D_\lambda + \mu\,D_\mu$
+    /// (see [`lame_basis`]): $a = \lambda$, or in plane stress
+    /// $2\lambda\mu/(\lambda + 2\mu)$.
+    pub(crate) fn lame_coefficients(&self, formulation: Formulation) -> (f64, f64) {
+        let (lambda, mu) = (self.lame_lambda(), self.shear_modulus());
+        match formulation {
+            Formulation::PlaneStress { .. } => (2.0 * lambda * mu / (lambda + 2.0 * mu), mu),
+            _ => (lambda, mu),
+        }
+    }
+}
+
+/// The constitutive matrices $D_\lambda$ (`which` 0) and $D_\mu$
+/// (`which` 1) of which every isotropic $D$ of `formulation` is the
+/// combination $a\,D_\lambda + \mu\,D_\mu$.
+pub(crate) fn lame_basis(formulation: Formulation, which: usize) -> Constitutive {
+    let (a, mu) = if which == 0 { (1.0, 0.0) } else { (0.0, 1.0) };
+    build(formulation, a, mu, a)
+}
+
 fn build(formulation: Formulation, lambda: f64, mu: f64, plane_stress_lambda: f64) -> Constitutive {
     match formulation {
         Formulation::PlaneStrain { .. } => Constitutive::Plane(plane(lambda, mu)),

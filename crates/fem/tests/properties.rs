@@ -264,6 +264,60 @@ fn stiffness_derivatives_match_finite_differences() {
     assert!((&d_nu - &fd).amax() < 1e-6 * d_nu.amax());
 }
 
+/// The homogeneous body's $K = a K_\lambda + \mu K_\mu$ against every
+/// element's integral with its own $D$, for two materials in turn on one
+/// assembler (the second reuses $K_\lambda$ and $K_\mu$).
+fn homogeneous_matches_elementwise<const D: usize>(
+    mesh: Mesh<D>,
+    formulation: Formulation,
+    materials: [(f64, f64); 2],
+) {
+    let assembler = Assembler::new(mesh, formulation).unwrap();
+    for (e, nu) in materials {
+        let material = Material::new(e, nu).unwrap();
+        let fast = dense(
+            &assembler
+                .stiffness(&Materials::homogeneous(material))
+                .unwrap(),
+        );
+        let mut k = assembler.pattern().zeros();
+        assembler
+            .assemble_into(&[Some(material.constitutive(formulation))], &mut k)
+            .unwrap();
+        let elementwise = dense(&k);
+        let error = (&fast - &elementwise).amax() / elementwise.amax();
+        assert!(error < 1e-13, "{formulation:?} E {e} nu {nu}: {error:e}");
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(8))]
+    #[test]
+    fn homogeneous_stiffness_is_the_lame_combination(
+        e in 1.0e3..1.0e6f64,
+        nu in 0.0..0.499f64,
+        e2 in 1.0e3..1.0e6f64,
+        nu2 in -0.5..0.499f64,
+    ) {
+        for kind in [ElementKind::Tri3, ElementKind::Tri6] {
+            for formulation in [PLANE, Formulation::PlaneStress { thickness: 0.01 }] {
+                homogeneous_matches_elementwise(
+                    distorted_square(kind, 3, 0.2, 11),
+                    formulation,
+                    [(e, nu), (e2, nu2)],
+                );
+            }
+        }
+        for kind in [ElementKind::Tet4, ElementKind::Tet10] {
+            homogeneous_matches_elementwise(
+                distorted_cube(kind, 2, 0.2, 13),
+                Formulation::Solid,
+                [(e, nu), (e2, nu2)],
+            );
+        }
+    }
+}
+
 #[test]
 fn region_derivatives_sum_to_the_homogeneous_derivative() {
     let mut mesh = distorted_square(ElementKind::Tri3, 4, 0.2, 5);
