@@ -152,9 +152,19 @@ impl Material {
 
     /// The constitutive matrix $D$ for `formulation`.
     pub fn constitutive(&self, formulation: Formulation) -> Constitutive {
+        let (a, mu) = self.lame_coefficients(formulation);
+        build(formulation, a, mu, a)
+    }
+
+    /// The coefficients $(a, \mu)$ with $D = a\,D_\lambda + \mu\,D_\mu$
+    /// (see [`lame_basis`]): $a = \lambda$, or in plane stress
+    /// $2\lambda\mu/(\lambda + 2\mu)$.
+    pub(crate) fn lame_coefficients(&self, formulation: Formulation) -> (f64, f64) {
         let (lambda, mu) = (self.lame_lambda(), self.shear_modulus());
-        let plane_stress_lambda = 2.0 * lambda * mu / (lambda + 2.0 * mu);
-        build(formulation, lambda, mu, plane_stress_lambda)
+        match formulation {
+            Formulation::PlaneStress { .. } => (2.0 * lambda * mu / (lambda + 2.0 * mu), mu),
+            _ => (lambda, mu),
+        }
     }
 
     /// The derivative $\partial D/\partial p$ of the constitutive matrix.
@@ -182,21 +192,6 @@ impl Material {
     }
 }
 
-/// Assembles $D$ (or its derivative, which has the same structure) from
-/// $\lambda$, $\mu$ and $\lambda^*$ (or their derivatives).
-impl Material {
-    /// The coefficients $(a, \mu)$ with $D = a\,D_\lambda + \mu\,D_\mu$
-    /// (see [`lame_basis`]): $a = \lambda$, or in plane stress
-    /// $2\lambda\mu/(\lambda + 2\mu)$.
-    pub(crate) fn lame_coefficients(&self, formulation: Formulation) -> (f64, f64) {
-        let (lambda, mu) = (self.lame_lambda(), self.shear_modulus());
-        match formulation {
-            Formulation::PlaneStress { .. } => (2.0 * lambda * mu / (lambda + 2.0 * mu), mu),
-            _ => (lambda, mu),
-        }
-    }
-}
-
 /// The constitutive matrices $D_\lambda$ (`which` 0) and $D_\mu$
 /// (`which` 1) of which every isotropic $D$ of `formulation` is the
 /// combination $a\,D_\lambda + \mu\,D_\mu$.
@@ -205,6 +200,8 @@ pub(crate) fn lame_basis(formulation: Formulation, which: usize) -> Constitutive
     build(formulation, a, mu, a)
 }
 
+/// Assembles $D$ (or its derivative, which has the same structure) from
+/// $\lambda$, $\mu$ and $\lambda^*$ (or their derivatives).
 fn build(formulation: Formulation, lambda: f64, mu: f64, plane_stress_lambda: f64) -> Constitutive {
     match formulation {
         Formulation::PlaneStrain { .. } => Constitutive::Plane(plane(lambda, mu)),
