@@ -278,11 +278,7 @@ impl<const D: usize> Assembler<D> {
         if let Some(first) = materials.0.first()
             && materials.0.iter().all(|m| m == first)
         {
-            if !self.pattern.matches(matrix) {
-                return Err(FemError::InvalidMesh(
-                    "matrix does not have the assembler's sparsity pattern".into(),
-                ));
-            }
+            self.check_pattern(matrix)?;
             let [k_lambda, k_mu] = self.lame_matrices()?;
             let (a, mu) = first.lame_coefficients(self.formulation);
             for ((value, l), m) in matrix.val_mut().iter_mut().zip(k_lambda).zip(k_mu) {
@@ -305,13 +301,22 @@ impl<const D: usize> Assembler<D> {
             return Ok(matrices);
         }
         let mut assembled = [0, 1].map(|_| self.pattern.zeros());
-        for (which, matrix) in assembled.iter_mut().enumerate() {
-            let basis = vec![Some(lame_basis(self.formulation, which)); self.region_count()];
-            self.assemble_into(&basis, matrix)?;
+        for (d, matrix) in lame_basis(self.formulation).into_iter().zip(&mut assembled) {
+            self.assemble_into(&vec![Some(d); self.region_count()], matrix)?;
         }
         Ok(self
             .lame_matrices
             .get_or_init(|| assembled.map(|m| m.val().to_vec())))
+    }
+
+    fn check_pattern(&self, matrix: &SparseColMat<usize, f64>) -> Result<(), FemError> {
+        if self.pattern.matches(matrix) {
+            Ok(())
+        } else {
+            Err(FemError::InvalidMesh(
+                "matrix does not have the assembler's sparsity pattern".into(),
+            ))
+        }
     }
 
     /// Regions the mesh's elements refer to.
@@ -350,11 +355,7 @@ impl<const D: usize> Assembler<D> {
         per_region: &[Option<Constitutive>],
         matrix: &mut SparseColMat<usize, f64>,
     ) -> Result<(), FemError> {
-        if !self.pattern.matches(matrix) {
-            return Err(FemError::InvalidMesh(
-                "matrix does not have the assembler's sparsity pattern".into(),
-            ));
-        }
+        self.check_pattern(matrix)?;
         if let Some(element) = self
             .mesh
             .regions()

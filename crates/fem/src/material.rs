@@ -192,12 +192,14 @@ impl Material {
     }
 }
 
-/// The constitutive matrices $D_\lambda$ (`which` 0) and $D_\mu$
-/// (`which` 1) of which every isotropic $D$ of `formulation` is the
-/// combination $a\,D_\lambda + \mu\,D_\mu$.
-pub(crate) fn lame_basis(formulation: Formulation, which: usize) -> Constitutive {
-    let (a, mu) = if which == 0 { (1.0, 0.0) } else { (0.0, 1.0) };
-    build(formulation, a, mu, a)
+/// The constitutive matrices $[D_\lambda, D_\mu]$ of which every
+/// isotropic $D$ of `formulation` is the combination
+/// $a\,D_\lambda + \mu\,D_\mu$.
+pub(crate) fn lame_basis(formulation: Formulation) -> [Constitutive; 2] {
+    [
+        build(formulation, 1.0, 0.0, 1.0),
+        build(formulation, 0.0, 1.0, 0.0),
+    ]
 }
 
 /// Assembles $D$ (or its derivative, which has the same structure) from
