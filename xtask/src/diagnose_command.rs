@@ -73,6 +73,7 @@ pub fn run(args: &DiagnoseArgs) -> Result<(), String> {
     write_outputs(&result, &folder.file("")).map_err(|e| e.to_string())?;
 
     print_ladder(&result);
+    println!("noise: {}", result.diagnosis.noise);
     let mut report = Report::default();
     add_sections(&mut report, &result, "1.")?;
     folder.write("report.html", &report.to_html("needle diagnosis"))?;

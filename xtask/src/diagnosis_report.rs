@@ -65,7 +65,7 @@ pub fn add_sections(report: &mut Report, run: &DiagnosisRun, number: &str) -> Re
         &format!("{number} Diagnosis: compare the model with the measurements"),
         &format!(
             "Bundle <code>{}</code>. Every trial is fitted jointly; residuals are whitened \
-             by the noise ({:?}). Candidates (catalog effects not in the model) are ranked \
+             by the noise ({}). Candidates (catalog effects not in the model) are ranked \
              by a score test at the fit and confirmed by refitting with the effect added; \
              an effect is named only when its likelihood-ratio p-value is below {:.2e} \
              (a family-wise false-alarm rate of 1%). Final model {:?}; verdict <b>{:?}</b>.\

@@ -7,9 +7,13 @@ use needle_data::read_bundle;
 use serde::{Deserialize, Serialize};
 
 use crate::error::DiagnoseError;
-use crate::fit::{Context, Fit, Fitted, Precision, fit_model, misfit};
+use crate::fit::{Context, Fit, Fitted, Precision, fit_model};
 use crate::forward::Forward;
 use crate::model::{Baseline, Model};
+use crate::noise::{
+    ChannelNoise, NoiseSource, RepeatedSampleNoise, marker_sigma_from_fit,
+    noise_from_repeated_samples,
+};
 use crate::observe::{Load, Observations};
 use crate::rank::{Candidate, Ranked, rank_candidates};
 use crate::spec::{DiagnoseOptions, ModelSpec};
@@ -26,22 +30,6 @@ pub enum Verdict {
     /// Some channel misfits beyond the noise, yet no catalog effect
     /// explains it significantly.
     Unexplained,
-}
-
-/// Where the noise levels of the whitening came from.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub enum NoiseSource {
-    /// Stated in the bundle.
-    Stated,
-    /// Not stated: estimated from the first fit's residuals per channel, so
-    /// chi-square per dof of that fit is 1 by construction and only the
-    /// candidate tests carry information.
-    Estimated {
-        /// Estimated marker noise (m).
-        marker_sigma: f64,
-        /// Estimated force noise (N).
-        force_sigma: f64,
-    },
 }
 
 /// The machine-readable summary, `diagnosis.ron`.
@@ -224,10 +212,20 @@ pub fn diagnose(
     model.effects()?;
     let bundle = read_bundle(bundle_dir)?;
     let campaign = &bundle.campaign;
-    // Relative weights until the noise is known.
-    let (marker_sigma, force_sigma) = campaign
-        .noise
-        .map_or((1.0e-5, 1.0e-2), |n| (n.marker_sigma, n.force_sigma));
+    // Unless stated, the noise from the repeated samples weighs the first
+    // fit; a channel without enough of them is weighed relatively.
+    let repeated = match campaign.noise {
+        Some(_) => None,
+        None => Some(noise_from_repeated_samples(campaign)),
+    };
+    let (marker_sigma, force_sigma) = match (campaign.noise, repeated) {
+        (Some(n), _) => (n.marker_sigma, n.force_sigma),
+        (None, Some(r)) => (
+            r.marker.map_or(1.0e-5, |s| s.sigma),
+            r.force.map_or(1.0e-2, |s| s.sigma),
+        ),
+        (None, None) => (1.0e-5, 1.0e-2),
+    };
     let obs = Observations::from_campaign(
         campaign,
         options.probe_force_samples,
@@ -257,41 +255,10 @@ pub fn diagnose(
     };
     let mut current = Model::new(model, &context.forward.geometry, start)?;
     // A first fit sets the weights: the probe force noise carried to the
-    // markers at these parameters, or the noise itself when not stated.
+    // markers at these parameters, and the noise itself when not stated.
     let first = fit_model(&context, &current, &[], &[], Precision::Model)?;
-    let noise = match campaign.noise {
-        Some(_) => {
-            let prediction = context
-                .forward
-                .predict(&current, &first.params, &context.obs)?;
-            context.whitening = Whitening::with_probe_noise(
-                marker_count,
-                marker_sigma,
-                force_sigma,
-                &prediction.probe_responses,
-            );
-            NoiseSource::Stated
-        }
-        None => {
-            let (fit, _, dof) = misfit(&context, &first.residuals, first.report.params.len());
-            let m = context.obs.marker_count() as f64;
-            let f = context.obs.force_count() as f64;
-            let estimate = |rms: f64, n: f64, dof: f64, fallback: f64| {
-                if n > 0.0 && rms > 0.0 {
-                    rms * (n / dof).sqrt()
-                } else {
-                    fallback
-                }
-            };
-            let sm = estimate(fit.rms_marker, m, dof[0], marker_sigma);
-            let sf = estimate(fit.rms_force, f, dof[1], force_sigma);
-            context.whitening = Whitening::independent(marker_count, sm, sf);
-            NoiseSource::Estimated {
-                marker_sigma: sm,
-                force_sigma: sf,
-            }
-        }
-    };
+    let initial = [marker_sigma, force_sigma];
+    let mut noise = weigh(&mut context, &current, &first, repeated, initial)?;
     let mut fitted = fit_model(&context, &current, &first.params, &[], Precision::Model)?;
     let mut ladder = Ladder::default();
     let mut steps = Vec::new();
@@ -348,6 +315,13 @@ pub fn diagnose(
         // model is refitted with it free, since the width the previous
         // model fitted may have absorbed part of what the effect explains.
         fitted = fit_model(&context, &current, &refit.params, &[], Precision::Model)?;
+        // Noise taken from a fit's residuals is taken again from the better
+        // model's: the last model's misfit inflated it, and would hide
+        // from the channel what the next effect must still explain.
+        if !noise.per_sample() {
+            noise = weigh(&mut context, &current, &fitted, repeated, initial)?;
+            fitted = fit_model(&context, &current, &fitted.params, &[], Precision::Model)?;
+        }
     }
     let diagnosis = steps.last().cloned().expect("at least one step");
     Ok(DiagnosisRun {
@@ -391,6 +365,55 @@ fn physical_range_warnings(model: &Model, params: &[f64]) -> Vec<String> {
         warnings.push(text);
     }
     warnings
+}
+
+/// The noise (`None` for `repeated`: stated, as `initial`) and the
+/// whitening it gives at the fit `fitted` of `current`, each probe frame
+/// with its force noise; an unstated channel's noise is the lesser of its
+/// repeated samples' estimate and the fit's (see `noise`), `initial` where
+/// it has no residuals.
+fn weigh(
+    context: &mut Context,
+    current: &Model,
+    fitted: &Fitted,
+    repeated: Option<RepeatedSampleNoise>,
+    initial: [f64; 2],
+) -> Result<NoiseSource, DiagnoseError> {
+    let marker_count = context.obs.marker_count();
+    let force_count = context.obs.force_count();
+    let mut responses = context
+        .forward
+        .predict(current, &fitted.params, &context.obs)?
+        .probe_responses;
+    let noise = match repeated {
+        None => NoiseSource::Stated,
+        Some(repeated) => {
+            let (rms, dof) = (fitted.fit.rms_force, fitted.dof[1]);
+            let from_fit =
+                (force_count > 0 && rms > 0.0).then(|| rms * (force_count as f64 / dof).sqrt());
+            let force = ChannelNoise::choose(from_fit, repeated.force, initial[1]);
+            // The probe frames' force noise was set from `initial`.
+            for response in &mut responses {
+                response.force_sigma *= force.sigma / initial[1];
+            }
+            let from_fit = marker_sigma_from_fit(
+                &fitted.residuals,
+                marker_count,
+                fitted.dof[0],
+                force.sigma,
+                &responses,
+            );
+            let marker = ChannelNoise::choose(from_fit, repeated.marker, initial[0]);
+            NoiseSource::Estimated { marker, force }
+        }
+    };
+    let [marker_sigma, force_sigma] = match &noise {
+        NoiseSource::Stated => initial,
+        NoiseSource::Estimated { marker, force } => [marker.sigma, force.sigma],
+    };
+    context.whitening =
+        Whitening::with_probe_noise(marker_count, marker_sigma, force_sigma, &responses);
+    Ok(noise)
 }
 
 /// The least-squares shaft density from the needle force samples,

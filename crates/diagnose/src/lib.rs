@@ -123,6 +123,7 @@ mod error;
 mod fit;
 mod forward;
 mod model;
+mod noise;
 mod observe;
 mod place;
 mod rank;
@@ -135,10 +136,11 @@ pub use chi2::{chi2_upper_quantile, chi2_upper_tail};
 pub use concentrate::{energy_share_of_worst, residual_concentration};
 pub use diagnose::{
     Diagnosis, DiagnosisRun, FittedModel, FittedParameter, ForceResidual, Ladder, LadderRow,
-    MarkerResidual, NoiseSource, TrialMisfit, Verdict, diagnose,
+    MarkerResidual, TrialMisfit, Verdict, diagnose,
 };
 pub use error::DiagnoseError;
 pub use fit::Fit;
+pub use noise::{ChannelNoise, NoiseBasis, NoiseSource, SampleNoise};
 pub use rank::Candidate;
 pub use spec::{DiagnoseOptions, ModelSpec};
 pub use write::write_outputs;

@@ -4,8 +4,14 @@
 
 mod support;
 
-use needle_diagnose::{DiagnoseOptions, DiagnosisRun, ModelSpec, Verdict, diagnose, write_outputs};
-use support::{Hidden, INCLUSION_CENTRE, PROBE_WIDTH, make_bundle};
+use needle_diagnose::{
+    DiagnoseOptions, DiagnosisRun, ModelSpec, NoiseBasis, NoiseSource, Verdict, diagnose,
+    write_outputs,
+};
+use support::{
+    FORCE_SIGMA, Hidden, INCLUSION_CENTRE, MARKER_SIGMA, PROBE_WIDTH, make_bundle,
+    make_bundle_stating,
+};
 
 fn options(add_recommended: bool, max_added: usize) -> DiagnoseOptions {
     DiagnoseOptions {
@@ -174,6 +180,58 @@ fn hidden_material_nonlinearity_is_named_and_fixed() {
         ..Hidden::default()
     };
     one_hidden("nonlinear", hidden, "material_nonlinearity");
+}
+
+/// A bundle that states no noise: the force noise comes from the sensor's
+/// repeated samples, the marker noise from the fit at each step (the
+/// frames are holds and depths far apart, so successive frames differ by
+/// signal), the hidden effect is still named, and once it is added the
+/// marker noise is the true one and the verdict consistent with noise.
+#[test]
+fn unstated_noise_is_estimated_and_the_hidden_effect_still_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let hidden = Hidden {
+        velocity_slope: 400.0,
+        ..Hidden::default()
+    };
+    let bundle = make_bundle_stating(dir.path(), "unstated", hidden, 13, false);
+    let run = diagnose(&bundle, &ModelSpec::baseline(), &options(true, 1)).unwrap();
+    print(&run);
+    let NoiseSource::Estimated { marker, force } = &run.steps[0].noise else {
+        panic!("{:?}", run.steps[0].noise)
+    };
+    eprintln!("marker {marker:?}\nforce {force:?}");
+    let NoiseBasis::RepeatedSamples(samples) = force.basis else {
+        panic!("{force:?}")
+    };
+    assert!(
+        samples.residuals > 400 && samples.consistent(),
+        "{samples:?}"
+    );
+    assert!((force.sigma / FORCE_SIGMA - 1.0).abs() < 0.1, "{force:?}");
+    let NoiseBasis::Fit {
+        repeated_samples: Some(frames),
+    } = marker.basis
+    else {
+        panic!("{marker:?}")
+    };
+    assert!(!frames.consistent(), "{marker:?}");
+    assert_eq!(
+        run.steps[0].verdict,
+        Verdict::MissingEffect("velocity_dependent_friction".into())
+    );
+    assert!(run.steps[1].fit.chi2_force <= 1.3, "{:?}", run.steps[1].fit);
+    // The marker noise is taken again at the better model's fit, where
+    // only the noise is left.
+    let NoiseSource::Estimated { marker, .. } = &run.steps[1].noise else {
+        panic!("{:?}", run.steps[1].noise)
+    };
+    eprintln!("after the effect: marker {marker:?}");
+    assert!(
+        (marker.sigma / MARKER_SIGMA - 1.0).abs() < 0.1,
+        "{marker:?}"
+    );
+    assert_eq!(run.steps[1].verdict, Verdict::ConsistentWithNoise);
 }
 
 #[test]

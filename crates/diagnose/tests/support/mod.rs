@@ -463,6 +463,17 @@ fn marker_grid() -> MarkerGrid {
 /// Writes a bundle with `hidden` effects and noise drawn from `seed` into
 /// `dir/name` and returns its path.
 pub fn make_bundle(dir: &Path, name: &str, hidden: Hidden, seed: u64) -> PathBuf {
+    make_bundle_stating(dir, name, hidden, seed, true)
+}
+
+/// As [`make_bundle`], stating the noise in the manifest or not.
+pub fn make_bundle_stating(
+    dir: &Path,
+    name: &str,
+    hidden: Hidden,
+    seed: u64,
+    state_noise: bool,
+) -> PathBuf {
     let grid = marker_grid();
     let points = grid.points();
     let truth = Truth::new(&grid, hidden);
@@ -478,10 +489,12 @@ pub fn make_bundle(dir: &Path, name: &str, hidden: Hidden, seed: u64) -> PathBuf
             fixed: vec![DataFace::Back],
         },
     );
-    builder.noise(Noise {
-        marker_sigma: MARKER_SIGMA,
-        force_sigma: FORCE_SIGMA,
-    });
+    if state_noise {
+        builder.noise(Noise {
+            marker_sigma: MARKER_SIGMA,
+            force_sigma: FORCE_SIGMA,
+        });
+    }
     builder.markers_rest(
         points
             .iter()
