@@ -72,7 +72,7 @@ pub struct SampleNoise {
 }
 
 impl SampleNoise {
-    /// True when the two orders agree (within [`AGREEMENT`]): the samples
+    /// True when the two orders agree (within 10 %): the samples
     /// are dense enough for the signal between them to be negligible.
     pub fn consistent(&self) -> bool {
         self.third_order_sigma
@@ -218,22 +218,15 @@ impl ChannelNoise {
     /// The value in `unit` (`scale` per SI unit) and where it came from.
     fn describe(&self, unit: &str, scale: f64) -> String {
         let sigma = self.sigma * scale;
-        let orders = |r: &SampleNoise| match r.third_order_sigma {
-            Some(third) => format!(
-                "{:.3} {unit} from differences of second order, {:.3} {unit} of third",
-                r.sigma * scale,
-                third * scale
-            ),
-            None => format!(
-                "{:.3} {unit} from differences of second order, too few of third",
-                r.sigma * scale
-            ),
+        let third = |r: &SampleNoise| match r.third_order_sigma {
+            Some(third) => format!("{:.3} {unit}", third * scale),
+            None => "too few".to_string(),
         };
         match &self.basis {
             NoiseBasis::RepeatedSamples(r) => format!(
-                "{sigma:.3} {unit} from {} differences of successive samples ({})",
+                "{sigma:.3} {unit} from {} differences of successive samples (third order: {})",
                 r.residuals,
-                orders(r)
+                third(r)
             ),
             NoiseBasis::Fit {
                 repeated_samples: None,
@@ -241,9 +234,10 @@ impl ChannelNoise {
             NoiseBasis::Fit {
                 repeated_samples: Some(r),
             } => format!(
-                "{sigma:.3} {unit} from the fit's residuals (successive samples: {}; \
-                 signal between samples, or the model fits below them)",
-                orders(r)
+                "{sigma:.3} {unit} from the fit's residuals (successive samples gave {:.3} {unit}, \
+                 third order: {}; signal between samples, or the fit leaves less)",
+                r.sigma * scale,
+                third(r)
             ),
             NoiseBasis::NoResiduals => "no data".to_string(),
         }
@@ -270,7 +264,7 @@ pub(crate) fn noise_from_repeated_samples(campaign: &Campaign) -> RepeatedSample
 /// scaled to the noise's standard deviation: $\sum_i c_i v_i / \lVert c
 /// \rVert$; `None` unless the times increase strictly.
 fn scaled_difference(t: &[f64], v: &[f64]) -> Option<f64> {
-    if t.windows(2).any(|w| !(w[1] > w[0])) {
+    if !t.windows(2).all(|w| w[1] > w[0]) {
         return None;
     }
     let (mut sum, mut norm2) = (0.0, 0.0);
@@ -305,7 +299,7 @@ impl Thinned {
     }
 
     fn push(&mut self, value: f64) {
-        if self.seen % self.stride == 0 {
+        if self.seen.is_multiple_of(self.stride) {
             self.values.push(value);
         }
         self.seen += 1;

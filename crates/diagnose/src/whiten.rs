@@ -20,7 +20,9 @@
 //!
 //! two dot products and two updates per frame, $O(n)$, never a dense
 //! $2n \times 2n$ matrix. The responses are taken at the first fit and held
-//! fixed, so every model of one diagnosis is compared under the same weights.
+//! fixed, so every model of one diagnosis is compared under the same weights
+//! (unless the noise is estimated from the fit, see `noise`: then the
+//! weights are taken again at each step).
 
 /// The responses of one probe frame to unit forces, for its covariance.
 #[derive(Debug, Clone, PartialEq)]
