@@ -214,17 +214,16 @@ pub fn diagnose(
     let campaign = &bundle.campaign;
     // Unless stated, the noise from the repeated samples weighs the first
     // fit; a channel without enough of them is weighed relatively.
-    let repeated = match campaign.noise {
-        Some(_) => None,
-        None => Some(noise_from_repeated_samples(campaign)),
-    };
-    let (marker_sigma, force_sigma) = match (campaign.noise, repeated) {
-        (Some(n), _) => (n.marker_sigma, n.force_sigma),
-        (None, Some(r)) => (
-            r.marker.map_or(1.0e-5, |s| s.sigma),
-            r.force.map_or(1.0e-2, |s| s.sigma),
+    let repeated = campaign
+        .noise
+        .is_none()
+        .then(|| noise_from_repeated_samples(campaign));
+    let (marker_sigma, force_sigma) = match campaign.noise {
+        Some(n) => (n.marker_sigma, n.force_sigma),
+        None => (
+            repeated.and_then(|r| r.marker).map_or(1.0e-5, |s| s.sigma),
+            repeated.and_then(|r| r.force).map_or(1.0e-2, |s| s.sigma),
         ),
-        (None, None) => (1.0e-5, 1.0e-2),
     };
     let obs = Observations::from_campaign(
         campaign,
@@ -396,13 +395,8 @@ fn weigh(
             for response in &mut responses {
                 response.force_sigma *= force.sigma / initial[1];
             }
-            let from_fit = marker_sigma_from_fit(
-                &fitted.residuals,
-                marker_count,
-                fitted.dof[0],
-                force.sigma,
-                &responses,
-            );
+            let from_fit =
+                marker_sigma_from_fit(&fitted.residuals, marker_count, fitted.dof[0], &responses);
             let marker = ChannelNoise::choose(from_fit, repeated.marker, initial[0]);
             NoiseSource::Estimated { marker, force }
         }

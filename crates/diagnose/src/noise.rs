@@ -19,14 +19,14 @@
 //! (sigma clipping). The clipping keeps events out (a puncture, a probe
 //! stepping to its next hold). A scale from the median would be robust
 //! from the start, but on a quantised sensor the residuals take few
-//! distinct values: on the paper-default campaign (12.5 mN steps) the
-//! median's scale is 7.6 mN and the clipped RMS 5.96 mN, against the
-//! 6.17 mN the generator states, and below the resolution most residuals
-//! are exactly zero, and so is their median.
+//! distinct values: on the quick campaign (12.5 mN steps) the median's
+//! scale is 7.57 mN and the clipped RMS 5.97 mN, against the 6.17 mN the
+//! generator states, and below the resolution most residuals are exactly
+//! zero, and so is their median.
 //!
 //! A marker missing from a frame (occluded) is skipped: its windows span
-//! the gap. Curvature of the signal between samples adds to $e$, so the
-//! estimate can only be too large, never too small, and frames far apart
+//! the gap. Curvature of the signal between samples adds to $e$, so it
+//! biases the estimate upwards, never downwards, and frames far apart
 //! (a few holds of a probe, a few depths of a needle) are all signal. The
 //! same scale is therefore also taken from the differences of third order
 //! (four successive samples, $\sum_i c_i v_i / \lVert c \rVert$ with the
@@ -48,16 +48,17 @@ use crate::whiten::{ProbeResponse, Whitening};
 /// Residuals beyond this many sigmas are events, not noise.
 const CLIP_SIGMAS: f64 = 4.0;
 
-/// Fewest residuals a channel's estimate is made from.
-const MIN_RESIDUALS: usize = 50;
+/// Fewest differences a channel's estimate is made from.
+const MIN_DIFFERENCES: usize = 50;
 
 /// The relative difference within which the estimates from differences of
 /// second and third order must agree.
 const AGREEMENT: f64 = 0.1;
 
-/// At most this many residuals per channel: beyond it they are taken at
-/// an even stride (a full campaign holds millions of marker rows).
-const MAX_RESIDUALS: usize = 1_000_000;
+/// At most this many differences per channel and order: beyond it they
+/// are taken at an even stride (a full campaign holds millions of marker
+/// rows).
+const MAX_DIFFERENCES: usize = 1_000_000;
 
 /// One channel's noise estimated from its repeated samples.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -66,7 +67,7 @@ pub struct SampleNoise {
     /// differences of second order (m or N).
     pub sigma: f64,
     /// How many differences of second order it was estimated from.
-    pub residuals: usize,
+    pub differences: usize,
     /// The same from the differences of third order, if there are enough.
     pub third_order_sigma: Option<f64>,
 }
@@ -149,8 +150,8 @@ impl ChannelNoise {
 
 /// The marker noise under which the marker residuals (the first
 /// `marker_count` of `residuals`) have chi-square `dof`, each probe frame
-/// whitened with its force noise too (`force_sigma`, `responses`; see
-/// `whiten`); `None` without marker residuals.
+/// whitened with its force noise too (`responses`, see `whiten`); `None`
+/// without marker residuals.
 ///
 /// Chi-square falls as the marker noise grows, and at the plain estimate
 /// $\hat\sigma^2 = \sum r^2 / \nu$ it is at most $\nu$ (the probe terms only
@@ -159,7 +160,6 @@ pub(crate) fn marker_sigma_from_fit(
     residuals: &[f64],
     marker_count: usize,
     dof: f64,
-    force_sigma: f64,
     responses: &[ProbeResponse],
 ) -> Option<f64> {
     let markers = &residuals[..marker_count.min(residuals.len())];
@@ -169,7 +169,8 @@ pub(crate) fn marker_sigma_from_fit(
     }
     let plain = (sum2 / dof).sqrt();
     let chi2 = |sigma: f64| -> f64 {
-        let whitening = Whitening::with_probe_noise(marker_count, sigma, force_sigma, responses);
+        // The force channel's own sigma does not touch the markers.
+        let whitening = Whitening::with_probe_noise(marker_count, sigma, 1.0, responses);
         whitening.apply(residuals)[..markers.len()]
             .iter()
             .map(|w| w * w)
@@ -225,7 +226,7 @@ impl ChannelNoise {
         match &self.basis {
             NoiseBasis::RepeatedSamples(r) => format!(
                 "{sigma:.3} {unit} from {} differences of successive samples (third order: {})",
-                r.residuals,
+                r.differences,
                 third(r)
             ),
             NoiseBasis::Fit {
@@ -245,7 +246,7 @@ impl ChannelNoise {
 }
 
 /// The marker and force noise estimated from repeated samples; `None` for
-/// a channel with fewer than [`MIN_RESIDUALS`] residuals.
+/// a channel with fewer than [`MIN_DIFFERENCES`] differences.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct RepeatedSampleNoise {
     pub marker: Option<SampleNoise>,
@@ -292,9 +293,9 @@ struct Thinned {
 impl Thinned {
     fn new(expected: usize) -> Self {
         Self {
-            stride: expected.div_ceil(MAX_RESIDUALS).max(1),
+            stride: expected.div_ceil(MAX_DIFFERENCES).max(1),
             seen: 0,
-            values: Vec::with_capacity(expected.min(MAX_RESIDUALS)),
+            values: Vec::with_capacity(expected.min(MAX_DIFFERENCES)),
         }
     }
 
@@ -337,10 +338,10 @@ impl Differences {
     }
 
     fn noise(self) -> Option<SampleNoise> {
-        let (sigma, residuals) = clipped_rms(self.second.values)?;
+        let (sigma, differences) = clipped_rms(self.second.values)?;
         Some(SampleNoise {
             sigma,
-            residuals,
+            differences,
             third_order_sigma: clipped_rms(self.third.values).map(|(s, _)| s),
         })
     }
@@ -397,10 +398,10 @@ fn force_differences(campaign: &Campaign) -> Differences {
 }
 
 /// The clipped RMS of `residuals` (see the module doc) and their count;
-/// `None` for fewer than [`MIN_RESIDUALS`] or a zero scale.
+/// `None` for fewer than [`MIN_DIFFERENCES`] or a zero scale.
 fn clipped_rms(mut residuals: Vec<f64>) -> Option<(f64, usize)> {
     residuals.retain(|e| e.is_finite());
-    if residuals.len() < MIN_RESIDUALS {
+    if residuals.len() < MIN_DIFFERENCES {
         return None;
     }
     let mut sigma = (residuals.iter().map(|e| e * e).sum::<f64>() / residuals.len() as f64).sqrt();
@@ -507,14 +508,14 @@ mod tests {
         let estimate = noise_from_repeated_samples(&campaign(8.0e-6, force_sigma, resolution));
         let marker = estimate.marker.unwrap();
         // 25 markers x 300 frames, 2 per frame missing for one marker.
-        assert_eq!(marker.residuals, 2 * (25 * 298 - 75));
+        assert_eq!(marker.differences, 2 * (25 * 298 - 75));
         assert!((marker.sigma / 8.0e-6 - 1.0).abs() < 0.03, "{marker:?}");
         assert!(marker.consistent(), "{marker:?}");
         // The quantised sensor's noise: Gaussian plus the rounding's
         // uniform error.
         let effective = (force_sigma.powi(2) + resolution.powi(2) / 12.0).sqrt();
         let force = estimate.force.unwrap();
-        assert_eq!(force.residuals, 2 * 998);
+        assert_eq!(force.differences, 2 * 998);
         assert!((force.sigma / effective - 1.0).abs() < 0.06, "{force:?}");
         assert!(force.consistent(), "{force:?}");
     }
@@ -534,7 +535,7 @@ mod tests {
             noise_from_repeated_samples(&campaign)
                 .force
                 .unwrap()
-                .residuals,
+                .differences,
             2 * 48
         );
     }
@@ -562,7 +563,7 @@ mod tests {
     fn each_channel_takes_the_lesser_estimate_when_the_orders_agree() {
         let sample = |sigma| SampleNoise {
             sigma,
-            residuals: 1000,
+            differences: 1000,
             third_order_sigma: Some(1.05 * sigma),
         };
         let marker = ChannelNoise::choose(Some(1.0), Some(sample(0.8)), 7.0);
@@ -612,7 +613,7 @@ mod tests {
             .collect();
         let dof = 36.0;
         let plain = (residuals[..40].iter().map(|r| r * r).sum::<f64>() / dof).sqrt();
-        let without = marker_sigma_from_fit(&residuals, 40, dof, 0.005, &[]).unwrap();
+        let without = marker_sigma_from_fit(&residuals, 40, dof, &[]).unwrap();
         assert!((without / plain - 1.0).abs() < 1e-12);
 
         let response = ProbeResponse {
@@ -622,11 +623,11 @@ mod tests {
             force_sigma: 0.05,
         };
         let responses = [response];
-        let sigma = marker_sigma_from_fit(&residuals, 40, dof, 0.005, &responses).unwrap();
+        let sigma = marker_sigma_from_fit(&residuals, 40, dof, &responses).unwrap();
         assert!(sigma < 0.99 * plain, "{sigma} {plain}");
         let whitened = Whitening::with_probe_noise(40, sigma, 0.005, &responses).apply(&residuals);
         let chi2: f64 = whitened[..40].iter().map(|w| w * w).sum();
         assert!((chi2 / dof - 1.0).abs() < 1e-9, "{chi2}");
-        assert_eq!(marker_sigma_from_fit(&[0.0; 43], 40, dof, 0.005, &[]), None);
+        assert_eq!(marker_sigma_from_fit(&[0.0; 43], 40, dof, &[]), None);
     }
 }

@@ -205,7 +205,7 @@ fn unstated_noise_is_estimated_and_the_hidden_effect_still_named() {
         panic!("{force:?}")
     };
     assert!(
-        samples.residuals > 400 && samples.consistent(),
+        samples.differences > 400 && samples.consistent(),
         "{samples:?}"
     );
     assert!((force.sigma / FORCE_SIGMA - 1.0).abs() < 0.1, "{force:?}");
