@@ -11,7 +11,7 @@ use crate::fit::{Context, Fit, Fitted, Precision, fit_model};
 use crate::forward::Forward;
 use crate::model::{Baseline, Model};
 use crate::noise::{
-    ChannelNoise, NoiseSource, RepeatedSampleNoise, marker_sigma_from_fit,
+    ChannelNoise, NoiseBasis, NoiseSource, RepeatedSampleNoise, marker_sigma_from_fit,
     noise_from_repeated_samples,
 };
 use crate::observe::{Load, Observations};
@@ -240,8 +240,9 @@ pub fn diagnose(
     )?;
     let measured = obs.measured();
     let marker_count = obs.marker_count();
+    let row_sigmas = obs.row_sigmas();
     let mut context = Context {
-        whitening: Whitening::independent(marker_count, marker_sigma, force_sigma),
+        whitening: Whitening::independent(marker_count, marker_sigma, &row_sigmas, force_sigma),
         forward,
         obs,
         measured,
@@ -380,6 +381,7 @@ fn weigh(
 ) -> Result<NoiseSource, DiagnoseError> {
     let marker_count = context.obs.marker_count();
     let force_count = context.obs.force_count();
+    let row_sigmas = context.obs.row_sigmas();
     let mut responses = context
         .forward
         .predict(current, &fitted.params, &context.obs)?
@@ -395,9 +397,21 @@ fn weigh(
             for response in &mut responses {
                 response.force_sigma *= force.sigma / initial[1];
             }
-            let from_fit =
-                marker_sigma_from_fit(&fitted.residuals, marker_count, fitted.dof[0], &responses);
-            let marker = ChannelNoise::choose(from_fit, repeated.marker, initial[0]);
+            let marker = if !row_sigmas.is_empty() && row_sigmas.iter().all(|s| s.is_finite()) {
+                ChannelNoise {
+                    sigma: initial[0],
+                    basis: NoiseBasis::Rows,
+                }
+            } else {
+                let from_fit = marker_sigma_from_fit(
+                    &fitted.residuals,
+                    marker_count,
+                    fitted.dof[0],
+                    &row_sigmas,
+                    &responses,
+                );
+                ChannelNoise::choose(from_fit, repeated.marker, initial[0])
+            };
             NoiseSource::Estimated { marker, force }
         }
     };
@@ -405,8 +419,13 @@ fn weigh(
         NoiseSource::Stated => initial,
         NoiseSource::Estimated { marker, force } => [marker.sigma, force.sigma],
     };
-    context.whitening =
-        Whitening::with_probe_noise(marker_count, marker_sigma, force_sigma, &responses);
+    context.whitening = Whitening::with_probe_noise(
+        marker_count,
+        marker_sigma,
+        &row_sigmas,
+        force_sigma,
+        &responses,
+    );
     Ok(noise)
 }
 

@@ -46,7 +46,8 @@
 //!
 //! ## The statistics
 //!
-//! Residuals are whitened by the stated noise: marker $\sigma_m$ and force
+//! Residuals are whitened by the stated noise: marker $\sigma_m$ (or, for
+//! a row of `markers.csv` that gives them, its own `sx,sy`) and force
 //! $\sigma_F$, and for each probe frame the force noise of the measured
 //! probe force (averaged over the nearest samples), which moves all markers
 //! of the frame together: that frame is whitened with its full covariance

@@ -118,6 +118,9 @@ pub enum NoiseBasis {
         /// The repeated samples' estimate, if any.
         repeated_samples: Option<SampleNoise>,
     },
+    /// Every marker row gives its own standard deviations (`sx,sy` in
+    /// `markers.csv`); the channel's sigma is a placeholder.
+    Rows,
     /// The channel has no residuals; its sigma is a placeholder.
     NoResiduals,
 }
@@ -150,16 +153,21 @@ impl ChannelNoise {
 
 /// The marker noise under which the marker residuals (the first
 /// `marker_count` of `residuals`) have chi-square `dof`, each probe frame
-/// whitened with its force noise too (`responses`, see `whiten`); `None`
-/// without marker residuals.
+/// whitened with its force noise too (`responses`, see `whiten`) and the
+/// rows that give their own noise with it (`row_sigmas`); `None` without
+/// marker residuals.
 ///
-/// Chi-square falls as the marker noise grows, and at the plain estimate
-/// $\hat\sigma^2 = \sum r^2 / \nu$ it is at most $\nu$ (the probe terms only
-/// add covariance), so bisection below that finds it.
+/// Chi-square falls as the marker noise grows, and without rows of their
+/// own it is at most $\nu$ at the plain estimate
+/// $\hat\sigma^2 = \sum r^2 / \nu$ (the probe terms only add covariance),
+/// so bisection below that finds it. Rows of their own can keep it above
+/// $\nu$ at any value; the search then ends at the top of its bracket,
+/// a thousand times the plain estimate.
 pub(crate) fn marker_sigma_from_fit(
     residuals: &[f64],
     marker_count: usize,
     dof: f64,
+    row_sigmas: &[f64],
     responses: &[ProbeResponse],
 ) -> Option<f64> {
     let markers = &residuals[..marker_count.min(residuals.len())];
@@ -170,13 +178,15 @@ pub(crate) fn marker_sigma_from_fit(
     let plain = (sum2 / dof).sqrt();
     let chi2 = |sigma: f64| -> f64 {
         // The force channel's own sigma does not touch the markers.
-        let whitening = Whitening::with_probe_noise(marker_count, sigma, 1.0, responses);
+        let whitening =
+            Whitening::with_probe_noise(marker_count, sigma, row_sigmas, 1.0, responses);
         whitening.apply(residuals)[..markers.len()]
             .iter()
             .map(|w| w * w)
             .sum()
     };
-    let (mut low, mut high) = (1e-3 * plain, plain);
+    let top = if row_sigmas.is_empty() { 1.0 } else { 1e3 };
+    let (mut low, mut high) = (1e-3 * plain, top * plain);
     for _ in 0..60 {
         let middle = (low * high).sqrt();
         if chi2(middle) > dof {
@@ -240,6 +250,7 @@ impl ChannelNoise {
                 r.sigma * scale,
                 third(r)
             ),
+            NoiseBasis::Rows => "per row, as markers.csv gives them (sx, sy)".to_string(),
             NoiseBasis::NoResiduals => "no data".to_string(),
         }
     }
@@ -613,7 +624,7 @@ mod tests {
             .collect();
         let dof = 36.0;
         let plain = (residuals[..40].iter().map(|r| r * r).sum::<f64>() / dof).sqrt();
-        let without = marker_sigma_from_fit(&residuals, 40, dof, &[]).unwrap();
+        let without = marker_sigma_from_fit(&residuals, 40, dof, &[], &[]).unwrap();
         assert!((without / plain - 1.0).abs() < 1e-12);
 
         let response = ProbeResponse {
@@ -623,11 +634,12 @@ mod tests {
             force_sigma: 0.05,
         };
         let responses = [response];
-        let sigma = marker_sigma_from_fit(&residuals, 40, dof, &responses).unwrap();
+        let sigma = marker_sigma_from_fit(&residuals, 40, dof, &[], &responses).unwrap();
         assert!(sigma < 0.99 * plain, "{sigma} {plain}");
-        let whitened = Whitening::with_probe_noise(40, sigma, 0.005, &responses).apply(&residuals);
+        let whitened =
+            Whitening::with_probe_noise(40, sigma, &[], 0.005, &responses).apply(&residuals);
         let chi2: f64 = whitened[..40].iter().map(|w| w * w).sum();
         assert!((chi2 / dof - 1.0).abs() < 1e-9, "{chi2}");
-        assert_eq!(marker_sigma_from_fit(&[0.0; 43], 40, dof, &[]), None);
+        assert_eq!(marker_sigma_from_fit(&[0.0; 43], 40, dof, &[], &[]), None);
     }
 }

@@ -51,6 +51,9 @@ pub(crate) struct Frame {
     pub load: Load,
     /// `(marker index in the rest set, measured position)`.
     pub markers: Vec<(usize, [f64; 2])>,
+    /// The tracking standard deviations `(sx, sy)` of those rows (m), when
+    /// `markers.csv` gives them.
+    pub row_sigmas: Option<Vec<[f64; 2]>>,
 }
 
 /// One needle force sample.
@@ -157,7 +160,8 @@ impl Observations {
                         },
                     };
                     let mut markers = Vec::with_capacity(frame.len());
-                    for (id, position) in frame.iter() {
+                    let mut row_sigmas = frame.sigmas.map(|_| Vec::with_capacity(frame.len()));
+                    for (row, (id, position)) in frame.iter().enumerate() {
                         let marker = campaign.markers_rest.index_of(id).ok_or_else(|| {
                             fail(format!("marker {id} is not in markers_rest.csv"))
                         })?;
@@ -169,12 +173,16 @@ impl Observations {
                             }
                         }
                         markers.push((marker, position));
+                        if let (Some(kept), Some(given)) = (&mut row_sigmas, frame.sigmas) {
+                            kept.push(given[row]);
+                        }
                     }
                     out.frames.push(Frame {
                         trial: index,
                         t: frame.t,
                         load,
                         markers,
+                        row_sigmas,
                     });
                 }
             }
@@ -205,6 +213,22 @@ impl Observations {
     /// Number of marker residuals (two per marker per frame).
     pub fn marker_count(&self) -> usize {
         2 * self.frames.iter().map(|f| f.markers.len()).sum::<usize>()
+    }
+
+    /// Per marker residual slot, the row's own tracking sigma (NaN where
+    /// its row gives none); empty when no row does.
+    pub fn row_sigmas(&self) -> Vec<f64> {
+        if self.frames.iter().all(|f| f.row_sigmas.is_none()) {
+            return Vec::new();
+        }
+        let mut out = Vec::with_capacity(self.marker_count());
+        for frame in &self.frames {
+            match &frame.row_sigmas {
+                Some(sigmas) => out.extend(sigmas.iter().flatten()),
+                None => out.extend(std::iter::repeat_n(f64::NAN, 2 * frame.markers.len())),
+            }
+        }
+        out
     }
 
     /// Number of force residuals (two per needle sample).

@@ -1,22 +1,26 @@
 //! Whiten the residuals with their full noise covariance.
 //!
-//! Marker coordinates carry independent tracking noise $\sigma_m$ and
-//! forces independent sensor noise $\sigma_F$. A probe frame's markers are
+//! Marker coordinates carry independent tracking noise $\sigma_m$ (or the
+//! row's own `sx`, `sy` where `markers.csv` gives them) and forces
+//! independent sensor noise $\sigma_F$. A probe frame's markers are
 //! predicted from the *measured* probe force $F$, whose noise (standard
 //! deviation $s$ per component, after averaging) moves every marker of the
 //! frame together along the unit responses $g_x, g_y$ (the displacements,
 //! stacked over the frame's markers, under unit forces along x and y). The
-//! covariance of that frame's $2n$ residuals is therefore
+//! covariance of that frame's $2n$ residuals is therefore, with
+//! $D = \operatorname{diag}(\sigma_i)$ the markers' own noise,
 //!
-//! $$ C = \sigma_m^2 I + s^2 (g_x g_x^T + g_y g_y^T)
-//!      = \sigma_m^2 (I + U U^T), \qquad U = \tfrac{s}{\sigma_m} [g_x\; g_y]. $$
+//! $$ C = D^2 + s^2 (g_x g_x^T + g_y g_y^T)
+//!      = D (I + U U^T) D, \qquad U = s D^{-1} [g_x\; g_y]. $$
 //!
 //! Treating it as diagonal lets effects that rescale whole trials absorb the
 //! correlated part and look significant when they are not. The whitening
-//! used here is the symmetric $C^{-1/2}$: with $U^T U = V \Lambda V^T$ and
-//! $q_i = U v_i / \sqrt{\lambda_i}$ (orthonormal),
+//! used here is $W = (I + U U^T)^{-1/2} D^{-1}$ (so $W C W^T = I$; with
+//! one $\sigma_m$ for all it is the symmetric $C^{-1/2}$): with
+//! $U^T U = V \Lambda V^T$ and $q_i = U v_i / \sqrt{\lambda_i}$
+//! (orthonormal),
 //!
-//! $$ C^{-1/2} = \frac{1}{\sigma_m}\Big(I + \sum_i \big((1+\lambda_i)^{-1/2} - 1\big) q_i q_i^T\Big), $$
+//! $$ W = \Big(I + \sum_i \big((1+\lambda_i)^{-1/2} - 1\big) q_i q_i^T\Big) D^{-1}, $$
 //!
 //! two dot products and two updates per frame, $O(n)$, never a dense
 //! $2n \times 2n$ matrix. The responses are taken at the first fit and held
@@ -57,17 +61,27 @@ struct CorrelatedFrame {
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct Whitening {
     marker_sigma: f64,
+    /// Per marker slot, the row's own tracking sigma (`sx` or `sy`), NaN
+    /// where its row gives none; empty when no row does.
+    row_sigmas: Vec<f64>,
     force_sigma: f64,
     marker_count: usize,
     frames: Vec<CorrelatedFrame>,
 }
 
 impl Whitening {
-    /// Independent noise: $\sigma_m$ on the first `marker_count` residuals,
-    /// $\sigma_F$ on the rest.
-    pub fn independent(marker_count: usize, marker_sigma: f64, force_sigma: f64) -> Self {
+    /// Independent noise: $\sigma_m$ on the first `marker_count` residuals
+    /// (or the row's own, `row_sigmas`, where finite), $\sigma_F$ on the
+    /// rest.
+    pub fn independent(
+        marker_count: usize,
+        marker_sigma: f64,
+        row_sigmas: &[f64],
+        force_sigma: f64,
+    ) -> Self {
         Self {
             marker_sigma,
+            row_sigmas: row_sigmas.to_vec(),
             force_sigma,
             marker_count,
             frames: Vec::new(),
@@ -78,23 +92,40 @@ impl Whitening {
     pub fn with_probe_noise(
         marker_count: usize,
         marker_sigma: f64,
+        row_sigmas: &[f64],
         force_sigma: f64,
         responses: &[ProbeResponse],
     ) -> Self {
-        let mut out = Self::independent(marker_count, marker_sigma, force_sigma);
-        out.frames = responses
+        let mut out = Self::independent(marker_count, marker_sigma, row_sigmas, force_sigma);
+        let frames = responses
             .iter()
             .map(|r| CorrelatedFrame {
                 start: r.start,
-                directions: directions(r, marker_sigma),
+                directions: directions(r, |slot| out.slot_sigma(slot)),
             })
             .collect();
+        out.frames = frames;
         out
+    }
+
+    /// The marker noise of residual slot `slot`.
+    fn slot_sigma(&self, slot: usize) -> f64 {
+        match self.row_sigmas.get(slot) {
+            Some(&sigma) if sigma.is_finite() => sigma,
+            _ => self.marker_sigma,
+        }
     }
 
     /// Whitened residuals of `raw` (model - data).
     pub fn apply(&self, raw: &[f64]) -> Vec<f64> {
         let mut out = raw.to_vec();
+        let split = self.marker_count.min(out.len());
+        for (slot, r) in out[..split].iter_mut().enumerate() {
+            *r /= self.slot_sigma(slot);
+        }
+        for r in &mut out[split..] {
+            *r /= self.force_sigma;
+        }
         for frame in &self.frames {
             for d in &frame.directions {
                 let block = &mut out[frame.start..frame.start + d.q.len()];
@@ -105,24 +136,19 @@ impl Whitening {
                 }
             }
         }
-        let split = self.marker_count.min(out.len());
-        for r in &mut out[..split] {
-            *r /= self.marker_sigma;
-        }
-        for r in &mut out[split..] {
-            *r /= self.force_sigma;
-        }
         out
     }
 }
 
 /// The eigen-directions of $U U^T$ for one frame.
-fn directions(response: &ProbeResponse, marker_sigma: f64) -> Vec<Direction> {
-    let ratio = response.force_sigma / marker_sigma;
-    let u: [Vec<f64>; 2] = [
-        response.unit_x.iter().map(|g| ratio * g).collect(),
-        response.unit_y.iter().map(|g| ratio * g).collect(),
-    ];
+fn directions(response: &ProbeResponse, slot_sigma: impl Fn(usize) -> f64) -> Vec<Direction> {
+    let scaled = |unit: &[f64]| -> Vec<f64> {
+        unit.iter()
+            .enumerate()
+            .map(|(k, g)| response.force_sigma * g / slot_sigma(response.start + k))
+            .collect()
+    };
+    let u: [Vec<f64>; 2] = [scaled(&response.unit_x), scaled(&response.unit_y)];
     let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
     let (a, b, d) = (dot(&u[0], &u[0]), dot(&u[0], &u[1]), dot(&u[1], &u[1]));
     let mean = 0.5 * (a + d);
@@ -175,13 +201,26 @@ mod tests {
 
     proptest! {
         /// $W C W^T = I$ for the covariance the module doc states.
+        /// Some marker slots with their rows' own sigma, the rest with the
+        /// channel's.
         #[test]
         fn whitened_covariance_is_the_identity(
             gx in prop::collection::vec(-1.0e-3f64..1.0e-3, 6),
             gy in prop::collection::vec(-1.0e-3f64..1.0e-3, 6),
             force_sigma in 1.0e-4f64..1.0e-1,
+            rows in prop::collection::vec(prop::option::of(2.0e-6f64..3.0e-5), 8),
+            with_rows in any::<bool>(),
         ) {
             let (sm, sf) = (8.0e-6, 5.0e-3);
+            let row_sigmas: Vec<f64> = if with_rows {
+                rows.iter().map(|r| r.unwrap_or(f64::NAN)).collect()
+            } else {
+                Vec::new()
+            };
+            let slot_sigma = |i: usize| match row_sigmas.get(i) {
+                Some(s) if s.is_finite() => *s,
+                _ => sm,
+            };
             // Two independent marker slots, the 6-slot probe frame, two forces.
             let (markers, n) = (8, 10);
             let response = ProbeResponse {
@@ -190,10 +229,13 @@ mod tests {
                 unit_y: gy.clone(),
                 force_sigma,
             };
-            let w = dense(&Whitening::with_probe_noise(markers, sm, sf, &[response]), n);
+            let w = dense(
+                &Whitening::with_probe_noise(markers, sm, &row_sigmas, sf, &[response]),
+                n,
+            );
             let mut c = DMatrix::zeros(n, n);
             for i in 0..n {
-                c[(i, i)] = if i < markers { sm * sm } else { sf * sf };
+                c[(i, i)] = if i < markers { slot_sigma(i).powi(2) } else { sf * sf };
             }
             for i in 0..6 {
                 for j in 0..6 {
@@ -220,11 +262,17 @@ mod tests {
             unit_y: g.iter().map(|v| 2.0 * v).collect(),
             force_sigma: 1.0e-2,
         };
-        assert_eq!(directions(&response, 1.0e-5).len(), 1);
-        let independent = Whitening::independent(4, 2.0, 4.0);
+        assert_eq!(directions(&response, |_| 1.0e-5).len(), 1);
+        let independent = Whitening::independent(4, 2.0, &[], 4.0);
         assert_eq!(
             independent.apply(&[2.0, 4.0, 6.0, 8.0, 4.0]),
             vec![1.0, 2.0, 3.0, 4.0, 1.0]
+        );
+        // A row's own sigma where given, the channel's elsewhere.
+        let rows = Whitening::independent(4, 2.0, &[f64::NAN, 8.0, 3.0, f64::NAN], 4.0);
+        assert_eq!(
+            rows.apply(&[2.0, 4.0, 6.0, 8.0, 4.0]),
+            vec![1.0, 0.5, 2.0, 4.0, 1.0]
         );
     }
 }

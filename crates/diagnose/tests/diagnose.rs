@@ -9,8 +9,8 @@ use needle_diagnose::{
     write_outputs,
 };
 use support::{
-    FORCE_SIGMA, Hidden, INCLUSION_CENTRE, MARKER_SIGMA, PROBE_WIDTH, make_bundle,
-    make_bundle_stating,
+    FORCE_SIGMA, Hidden, INCLUSION_CENTRE, MARKER_SIGMA, ODD_MARKER_NOISE, PROBE_WIDTH, Written,
+    make_bundle, make_bundle_with,
 };
 
 fn options(add_recommended: bool, max_added: usize) -> DiagnoseOptions {
@@ -194,7 +194,11 @@ fn unstated_noise_is_estimated_and_the_hidden_effect_still_named() {
         velocity_slope: 400.0,
         ..Hidden::default()
     };
-    let bundle = make_bundle_stating(dir.path(), "unstated", hidden, 13, false);
+    let written = Written {
+        state_noise: false,
+        ..Written::default()
+    };
+    let bundle = make_bundle_with(dir.path(), "unstated", hidden, 13, written);
     let run = diagnose(&bundle, &ModelSpec::baseline(), &options(true, 1)).unwrap();
     print(&run);
     let NoiseSource::Estimated { marker, force } = &run.steps[0].noise else {
@@ -232,6 +236,44 @@ fn unstated_noise_is_estimated_and_the_hidden_effect_still_named() {
         "{marker:?}"
     );
     assert_eq!(run.steps[1].verdict, Verdict::ConsistentWithNoise);
+}
+
+/// Half the markers tracked three times worse than the stated 8 um: with
+/// each row of `markers.csv` giving its own `sx,sy`, null data are weighted
+/// by them, fit at chi-square per dof near 1 and are consistent with
+/// noise; the same data without them misfit at about the mean of 1 and 9.
+#[test]
+fn rows_with_their_own_noise_are_weighted_by_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let fits: Vec<_> = [true, false]
+        .into_iter()
+        .map(|row_sigmas| {
+            let written = Written {
+                odd_noise: true,
+                row_sigmas,
+                ..Written::default()
+            };
+            let name = format!("rows-{row_sigmas}");
+            let bundle = make_bundle_with(dir.path(), &name, Hidden::default(), 17, written);
+            let run = diagnose(&bundle, &ModelSpec::baseline(), &options(false, 0)).unwrap();
+            print(&run);
+            run.diagnosis
+        })
+        .collect();
+    let (weighted, plain) = (&fits[0], &fits[1]);
+    assert_eq!(weighted.verdict, Verdict::ConsistentWithNoise);
+    assert!(
+        (weighted.fit.chi2_marker - 1.0).abs() < 0.1,
+        "{:?}",
+        weighted.fit
+    );
+    let expected = 0.5 * (1.0 + ODD_MARKER_NOISE.powi(2));
+    assert!(
+        (plain.fit.chi2_marker / expected - 1.0).abs() < 0.2,
+        "{:?}",
+        plain.fit
+    );
+    assert_ne!(plain.verdict, Verdict::ConsistentWithNoise);
 }
 
 #[test]

@@ -25,8 +25,8 @@
 use std::path::{Path, PathBuf};
 
 use needle_data::{
-    BundleBuilder, Face as DataFace, MarkerRest, Noise, Phantom, ToolSample, Trial, TrialKind,
-    WriteOptions,
+    BundleBuilder, Face as DataFace, MarkerRest, MarkerTrack, Noise, Phantom, ToolSample, Trial,
+    TrialKind, WriteOptions,
 };
 use needle_fem::load::{add_line_load, add_point_force};
 use needle_fem::{
@@ -463,16 +463,40 @@ fn marker_grid() -> MarkerGrid {
 /// Writes a bundle with `hidden` effects and noise drawn from `seed` into
 /// `dir/name` and returns its path.
 pub fn make_bundle(dir: &Path, name: &str, hidden: Hidden, seed: u64) -> PathBuf {
-    make_bundle_stating(dir, name, hidden, seed, true)
+    make_bundle_with(dir, name, hidden, seed, Written::default())
 }
 
-/// As [`make_bundle`], stating the noise in the manifest or not.
-pub fn make_bundle_stating(
+/// How a bundle states its noise.
+#[derive(Debug, Clone, Copy)]
+pub struct Written {
+    /// The manifest states the noise (`MARKER_SIGMA`, `FORCE_SIGMA`).
+    pub state_noise: bool,
+    /// Markers with odd ids are tracked `ODD_MARKER_NOISE` times worse.
+    pub odd_noise: bool,
+    /// Every row of `markers.csv` gives its own `sx,sy`.
+    pub row_sigmas: bool,
+}
+
+impl Default for Written {
+    fn default() -> Self {
+        Self {
+            state_noise: true,
+            odd_noise: false,
+            row_sigmas: false,
+        }
+    }
+}
+
+/// How much noisier the odd markers are with `Written::odd_noise`.
+pub const ODD_MARKER_NOISE: f64 = 3.0;
+
+/// As [`make_bundle`], with the noise written as `written` says.
+pub fn make_bundle_with(
     dir: &Path,
     name: &str,
     hidden: Hidden,
     seed: u64,
-    state_noise: bool,
+    written: Written,
 ) -> PathBuf {
     let grid = marker_grid();
     let points = grid.points();
@@ -489,7 +513,7 @@ pub fn make_bundle_stating(
             fixed: vec![DataFace::Back],
         },
     );
-    if state_noise {
+    if written.state_noise {
         builder.noise(Noise {
             marker_sigma: MARKER_SIGMA,
             force_sigma: FORCE_SIGMA,
@@ -514,6 +538,13 @@ pub fn make_bundle_stating(
         .map(|p| (p[0] - centre[0]).hypot(p[1] - centre[1]))
         .fold(0.0, f64::max);
     let k1 = hidden.lens / outermost.powi(3);
+    let marker_sigma = |id: usize| {
+        if written.odd_noise && id % 2 == 1 {
+            ODD_MARKER_NOISE * MARKER_SIGMA
+        } else {
+            MARKER_SIGMA
+        }
+    };
     let markers_of = |d: &[[f64; 2]], rng: &mut ChaCha8Rng| -> Vec<(u32, [f64; 2])> {
         points
             .iter()
@@ -525,12 +556,27 @@ pub fn make_bundle_stating(
                 (
                     id as u32,
                     [
-                        centre[0] + distortion * x + marker_noise.sample(rng),
-                        centre[1] + distortion * y + marker_noise.sample(rng),
+                        centre[0]
+                            + distortion * x
+                            + marker_noise.sample(rng) * marker_sigma(id) / MARKER_SIGMA,
+                        centre[1]
+                            + distortion * y
+                            + marker_noise.sample(rng) * marker_sigma(id) / MARKER_SIGMA,
                     ],
                 )
             })
             .collect()
+    };
+    let push = |track: &mut MarkerTrack, frame: u64, t: f64, markers: Vec<(u32, [f64; 2])>| {
+        if written.row_sigmas {
+            let rows = markers.into_iter().map(|(id, p)| {
+                let sigma = marker_sigma(id as usize);
+                (id, p, [sigma, sigma])
+            });
+            track.push_frame_with_sigma(frame, t, rows).unwrap();
+        } else {
+            track.push_frame(frame, t, markers).unwrap();
+        }
     };
     // Probe trials: three holds of increasing force pushing +y on the front face.
     for (k, (x, day)) in [(0.02, 0.0), (0.0375, 3.0), (0.055, 6.0)]
@@ -565,10 +611,8 @@ pub fn make_bundle_stating(
             .collect();
         for (frame, response) in truth.respond(day, &pushes, &points).iter().enumerate() {
             let t = 0.5 + frame as f64;
-            trial
-                .markers_mut()
-                .push_frame(frame as u64, t, markers_of(&response.markers, &mut rng))
-                .unwrap();
+            let markers = markers_of(&response.markers, &mut rng);
+            push(trial.markers_mut(), frame as u64, t, markers);
         }
     }
     // Needle trials: straight insertions to 50 mm at three speeds.
@@ -612,14 +656,8 @@ pub fn make_bundle_stating(
             });
         }
         for (frame, &i) in [10usize, 17, 25].iter().enumerate() {
-            trial
-                .markers_mut()
-                .push_frame(
-                    frame as u64,
-                    time(i),
-                    markers_of(&responses[i - 1].markers, &mut rng),
-                )
-                .unwrap();
+            let markers = markers_of(&responses[i - 1].markers, &mut rng);
+            push(trial.markers_mut(), frame as u64, time(i), markers);
         }
     }
     let path = dir.join(name);
