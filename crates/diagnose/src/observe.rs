@@ -216,7 +216,8 @@ impl Observations {
     }
 
     /// Per marker residual slot, the row's own tracking sigma (NaN where
-    /// its row gives none); empty when no row does.
+    /// its row gives none, or zero, which no tracker can mean); empty when
+    /// no row does.
     pub fn row_sigmas(&self) -> Vec<f64> {
         if self.frames.iter().all(|f| f.row_sigmas.is_none()) {
             return Vec::new();
@@ -224,7 +225,12 @@ impl Observations {
         let mut out = Vec::with_capacity(self.marker_count());
         for frame in &self.frames {
             match &frame.row_sigmas {
-                Some(sigmas) => out.extend(sigmas.iter().flatten()),
+                Some(sigmas) => out.extend(
+                    sigmas
+                        .iter()
+                        .flatten()
+                        .map(|&s| if s > 0.0 { s } else { f64::NAN }),
+                ),
                 None => out.extend(std::iter::repeat_n(f64::NAN, 2 * frame.markers.len())),
             }
         }
@@ -344,7 +350,9 @@ fn shaft(pose: &ToolSample) -> Result<Option<Shaft>, String> {
 
 #[cfg(test)]
 mod tests {
-    use needle_data::{BundleBuilder, Campaign, MarkerRest, Phantom, ToolSample, Trial, TrialKind};
+    use needle_data::{
+        BundleBuilder, Campaign, MarkerRest, MarkerTrack, Phantom, ToolSample, Trial, TrialKind,
+    };
 
     use super::{Load, Observations, nearest_boundary_point, thinned};
 
@@ -413,6 +421,33 @@ mod tests {
         assert_eq!(all.near_field_left_out, vec![0, 0]);
         let wider = Observations::from_campaign(&campaign, 1, 0.005, 0, 2.0).unwrap();
         assert_eq!(kept(&wider, 0), vec![3]);
+    }
+
+    /// The probe trial's rows give their own sigmas (marker 1's sy zero),
+    /// the needle trial's none: slots of the markers kept, in order.
+    #[test]
+    fn row_sigmas_follow_the_markers_kept() {
+        let mut campaign = probe_campaign();
+        let rows: Vec<_> = (0..4u32)
+            .map(|id| {
+                let p = campaign.markers_rest.as_slice()[id as usize];
+                let sy = if id == 1 { 0.0 } else { 2e-6 * f64::from(id) };
+                (id, [p.x, p.y], [1e-6 * f64::from(id + 1), sy])
+            })
+            .collect();
+        let track = campaign.trials[0].markers.as_mut().unwrap();
+        *track = MarkerTrack::default();
+        track.push_frame_with_sigma(0, 0.0, rows).unwrap();
+        let obs = Observations::from_campaign(&campaign, 1, 0.005, 0, 1.0).unwrap();
+        let sigmas = obs.row_sigmas();
+        assert_eq!(sigmas.len(), obs.marker_count());
+        // Probe frame: markers 1 and 3 kept; then the needle's four, none given.
+        assert_eq!(sigmas[0], 2e-6);
+        assert!(sigmas[1].is_nan());
+        assert_eq!(sigmas[2..4], [4e-6, 6e-6]);
+        assert!(sigmas[4..].iter().all(|s| s.is_nan()));
+        let plain = Observations::from_campaign(&probe_campaign(), 1, 0.005, 0, 1.0).unwrap();
+        assert!(plain.row_sigmas().is_empty());
     }
 
     /// The bundle's moment is about the tip, 1 mm inside the face; about
