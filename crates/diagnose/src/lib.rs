@@ -63,7 +63,8 @@
 //! quick campaign with its noise removed from the manifest the estimates
 //! are 7.99 um and 5.97 mN (8 um and 6.17 mN generated), and the ladder
 //! adds the same effects as with the noise stated, to the same verdict
-//! (force chi-square per dof some 6% higher, marker within 0.3%).
+//! (chi-square per dof 5.5 to 6.6% higher for the force, 0.3 to 0.6% for
+//! the markers).
 //!
 //! - **Chi-square per dof** of a channel $c$ with $n_c$ residuals:
 //!   $\chi^2_c / \nu_c$, $\nu_c = n_c - p\, n_c / n$ (the $p$ fitted

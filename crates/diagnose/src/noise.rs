@@ -149,6 +149,35 @@ impl ChannelNoise {
             },
         }
     }
+
+    /// The value in `unit` (`scale` per SI unit) and where it came from.
+    fn describe(&self, unit: &str, scale: f64) -> String {
+        let sigma = self.sigma * scale;
+        let third = |r: &SampleNoise| match r.third_order_sigma {
+            Some(third) => format!("{:.3} {unit}", third * scale),
+            None => "too few".to_string(),
+        };
+        match &self.basis {
+            NoiseBasis::RepeatedSamples(r) => format!(
+                "{sigma:.3} {unit} from {} differences of successive samples (third order: {})",
+                r.differences,
+                third(r)
+            ),
+            NoiseBasis::Fit {
+                repeated_samples: None,
+            } => format!("{sigma:.3} {unit} from the fit's residuals"),
+            NoiseBasis::Fit {
+                repeated_samples: Some(r),
+            } => format!(
+                "{sigma:.3} {unit} from the fit's residuals (successive samples gave {:.3} {unit}, \
+                 third order: {}; signal between samples, or the fit leaves less)",
+                r.sigma * scale,
+                third(r)
+            ),
+            NoiseBasis::Rows => "per row, as markers.csv gives them (sx, sy)".to_string(),
+            NoiseBasis::NoResiduals => "no data".to_string(),
+        }
+    }
 }
 
 /// The marker noise under which the marker residuals (the first
@@ -221,37 +250,6 @@ impl fmt::Display for NoiseSource {
                 marker.describe("um", 1e6),
                 force.describe("mN", 1e3)
             ),
-        }
-    }
-}
-
-impl ChannelNoise {
-    /// The value in `unit` (`scale` per SI unit) and where it came from.
-    fn describe(&self, unit: &str, scale: f64) -> String {
-        let sigma = self.sigma * scale;
-        let third = |r: &SampleNoise| match r.third_order_sigma {
-            Some(third) => format!("{:.3} {unit}", third * scale),
-            None => "too few".to_string(),
-        };
-        match &self.basis {
-            NoiseBasis::RepeatedSamples(r) => format!(
-                "{sigma:.3} {unit} from {} differences of successive samples (third order: {})",
-                r.differences,
-                third(r)
-            ),
-            NoiseBasis::Fit {
-                repeated_samples: None,
-            } => format!("{sigma:.3} {unit} from the fit's residuals"),
-            NoiseBasis::Fit {
-                repeated_samples: Some(r),
-            } => format!(
-                "{sigma:.3} {unit} from the fit's residuals (successive samples gave {:.3} {unit}, \
-                 third order: {}; signal between samples, or the fit leaves less)",
-                r.sigma * scale,
-                third(r)
-            ),
-            NoiseBasis::Rows => "per row, as markers.csv gives them (sx, sy)".to_string(),
-            NoiseBasis::NoResiduals => "no data".to_string(),
         }
     }
 }
