@@ -5,9 +5,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 use needle_data::{BundleError, WriteOptions, read_bundle, validate_bundle, write_markers_csv};
-use needle_vision::Calibration;
-
-use crate::camera::{calibrate_from_bundle, track_trial};
+use needle_vision::{Calibration, calibrate_from_bundle, frame_rate, track_trial};
 
 /// Options of `cargo xtask validate`.
 #[derive(Args)]
@@ -61,18 +59,22 @@ pub fn track(args: &TrackArgs) -> Result<(), String> {
     }
     let calibration = match &args.calibration {
         Some(path) => Calibration::load(path).map_err(|e| e.to_string())?,
-        None => calibrate_from_bundle(&bundle.root)?.ok_or_else(|| {
-            format!(
-                "{}: no --calibration given and the bundle has no calibration/ folder",
-                args.bundle.display()
-            )
-        })?,
+        None => calibrate_from_bundle(&bundle.root)
+            .map_err(|e| e.to_string())?
+            .ok_or_else(|| {
+                format!(
+                    "{}: no --calibration given and the bundle has no calibration/ folder",
+                    args.bundle.display()
+                )
+            })?,
     };
-    let tracked = track_trial(&bundle, &args.trial, &calibration)?;
+    let rate = frame_rate(&bundle, &args.trial);
+    let tracked =
+        track_trial(&bundle, &args.trial, &calibration, &rate).map_err(|e| e.to_string())?;
     write_markers_csv(&args.out, &tracked.observations, WriteOptions::default())
         .map_err(|e| e.to_string())?;
     println!(
-        "tracked {} marker positions into {}; {} marker-frames lost",
+        "tracked {} marker positions into {}; {} marker-frames lost; frame numbers read at {rate}",
         tracked.observations.len(),
         args.out.display(),
         tracked.lost.len()

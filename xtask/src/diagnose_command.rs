@@ -1,12 +1,16 @@
 //! `cargo xtask diagnose`: compare a model with a bundle, see where it
 //! fails, learn which effect is missing, and (with `--add-recommended`)
-//! add it and watch the error fall. A thin wrapper over `needle-diagnose`.
+//! add it and watch the error fall. A thin wrapper over `needle-diagnose`;
+//! trials with camera frames and no `markers.csv` are tracked first
+//! (`needle-vision`).
 
 use std::path::PathBuf;
 
 use clap::Args;
-use needle_diagnose::{DiagnoseOptions, ModelSpec, diagnose, write_outputs};
+use needle_data::{BundleError, read_bundle};
+use needle_diagnose::{DiagnoseOptions, ModelSpec, diagnose_campaign, write_outputs};
 
+use crate::camera::track_untracked;
 use crate::diagnosis_report::{add_sections, print_ladder};
 use crate::output::OutputFolder;
 use crate::report::Report;
@@ -68,8 +72,15 @@ pub fn run(args: &DiagnoseArgs) -> Result<(), String> {
         slab_refinement: args.slab_refinement,
         ..DiagnoseOptions::default()
     };
+    options.validate().map_err(|e| e.to_string())?;
+    let mut bundle = read_bundle(&args.bundle).map_err(|e| match e {
+        BundleError::Invalid { report } => format!("{report}"),
+        other => other.to_string(),
+    })?;
+    track_untracked(&mut bundle)?;
     sequential_linear_algebra();
-    let result = diagnose(&args.bundle, &model, &options).map_err(|e| e.to_string())?;
+    let result =
+        diagnose_campaign(&bundle.campaign, &model, &options).map_err(|e| e.to_string())?;
     write_outputs(&result, &folder.file("")).map_err(|e| e.to_string())?;
 
     print_ladder(&result);

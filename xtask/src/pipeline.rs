@@ -36,8 +36,8 @@ use needle_force::{
 };
 use needle_identify::{IdentifyOptions, PlaneModel, identify_material};
 use needle_synth::{GroundTruth, Scenario, Stage, generate, load_scenario};
+use needle_vision::{calibrate_from_bundle, frame_rate, track_trial};
 
-use crate::camera::{calibrate_from_bundle, track_trial};
 use crate::diagnose_command::sequential_linear_algebra;
 use crate::diagnosis_report::{add_sections, print_ladder};
 use crate::output::OutputFolder;
@@ -222,7 +222,7 @@ fn track_camera_frames(
         return Ok(());
     }
     let bar = spinner("camera: calibrating from calibration/");
-    let Some(calibration) = calibrate_from_bundle(&bundle.root)? else {
+    let Some(calibration) = calibrate_from_bundle(&bundle.root).map_err(|e| e.to_string())? else {
         bar.finish_with_message("camera: frames but no calibration/ folder; not tracked");
         return Ok(());
     };
@@ -252,7 +252,8 @@ fn track_camera_frames(
     let mut rows = Vec::new();
     for id in &with_frames {
         bar.set_message(format!("camera: tracking {id}"));
-        let tracked = track_trial(bundle, id, &calibration)?;
+        let tracked = track_trial(bundle, id, &calibration, &frame_rate(bundle, id))
+            .map_err(|e| e.to_string())?;
         let given = bundle.trial(id).and_then(|t| t.markers.as_ref());
         let mut differences = Vec::new();
         if let Some(given) = given {

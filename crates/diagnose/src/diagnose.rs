@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use needle_data::read_bundle;
+use needle_data::{Campaign, read_bundle};
 use serde::{Deserialize, Serialize};
 
 use crate::error::DiagnoseError;
@@ -202,7 +202,10 @@ pub struct DiagnosisRun {
     pub trials: Vec<TrialMisfit>,
 }
 
-/// Diagnoses `model` on the bundle at `bundle_dir`.
+/// Diagnoses `model` on the bundle at `bundle_dir`, as its files give it
+/// (a trial with camera frames and no `markers.csv` counts as force-only;
+/// `needle_vision::track_untracked_trials` and [`diagnose_campaign`] track
+/// it first).
 pub fn diagnose(
     bundle_dir: &Path,
     model: &ModelSpec,
@@ -211,7 +214,17 @@ pub fn diagnose(
     options.validate()?;
     model.effects()?;
     let bundle = read_bundle(bundle_dir)?;
-    let campaign = &bundle.campaign;
+    diagnose_campaign(&bundle.campaign, model, options)
+}
+
+/// Diagnoses `model` on a campaign already in memory.
+pub fn diagnose_campaign(
+    campaign: &Campaign,
+    model: &ModelSpec,
+    options: &DiagnoseOptions,
+) -> Result<DiagnosisRun, DiagnoseError> {
+    options.validate()?;
+    model.effects()?;
     // Unless stated, the noise from the repeated samples weighs the first
     // fit; a channel without enough of them is weighed relatively.
     let repeated = campaign

@@ -147,7 +147,7 @@ pub use chi2::{chi2_upper_quantile, chi2_upper_tail};
 pub use concentrate::{energy_share_of_worst, residual_concentration};
 pub use diagnose::{
     Diagnosis, DiagnosisRun, FittedModel, FittedParameter, ForceResidual, Ladder, LadderRow,
-    MarkerResidual, TrialMisfit, Verdict, diagnose,
+    MarkerResidual, TrialMisfit, Verdict, diagnose, diagnose_campaign,
 };
 pub use error::DiagnoseError;
 pub use fit::Fit;

@@ -148,7 +148,9 @@ impl Default for DiagnoseOptions {
 }
 
 impl DiagnoseOptions {
-    pub(crate) fn validate(&self) -> Result<(), DiagnoseError> {
+    /// Checks every option, naming the first out of range; [`crate::diagnose`]
+    /// does this first, callers that do slow work before it can too.
+    pub fn validate(&self) -> Result<(), DiagnoseError> {
         let bad = |field: &'static str, reason: String| {
             Err(DiagnoseError::InvalidOption { field, reason })
         };

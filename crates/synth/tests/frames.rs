@@ -11,8 +11,8 @@ use needle_data::{read_bundle, read_calibration_target, validate_bundle};
 use needle_synth::frames::marker_pixel;
 use needle_synth::{CameraFrames, EffectId, Effects, Scenario, TrueCamera, generate};
 use needle_vision::{
-    Calibration, DotGrid, FixedParameters, GreyFrame, Pose, SearchPolicy, TrackFramesOptions,
-    TrackOptions, calibrate_dot_grid, track_frames,
+    Calibration, DotGrid, FixedParameters, FrameRate, GreyFrame, Pose, SearchPolicy,
+    TrackFramesOptions, TrackOptions, calibrate_dot_grid, track_frames, track_untracked_trials,
 };
 
 /// The paper phantom, plane strain, coarse, 6 x 6 markers, noise-free
@@ -143,6 +143,131 @@ fn frames_are_numbered_like_the_tracks_and_track_back_to_the_truth() {
     );
     assert!(worst_px < 0.1, "worst tracking error {worst_px} px");
     assert!(worst_m < 8e-6, "worst tracking error {worst_m} m");
+}
+
+/// Copies a bundle folder (files and subfolders).
+fn copy_tree(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for entry in std::fs::read_dir(from).unwrap() {
+        let entry = entry.unwrap();
+        let target = to.join(entry.file_name());
+        if entry.file_type().unwrap().is_dir() {
+            copy_tree(&entry.path(), &target);
+        } else {
+            std::fs::copy(entry.path(), target).unwrap();
+        }
+    }
+}
+
+/// All files under `root` with their sizes, to see that nothing was written.
+fn listing(root: &Path) -> Vec<(std::path::PathBuf, u64)> {
+    let mut out = Vec::new();
+    for entry in std::fs::read_dir(root).unwrap() {
+        let entry = entry.unwrap();
+        if entry.file_type().unwrap().is_dir() {
+            out.extend(listing(&entry.path()));
+        } else {
+            out.push((entry.path(), entry.metadata().unwrap().len()));
+        }
+    }
+    out.sort();
+    out
+}
+
+#[test]
+fn trials_with_frames_and_no_markers_csv_get_the_tracks_of_their_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let (bundle, truth) = (dir.path().join("bundle"), dir.path().join("truth.ron"));
+    generate(&small(), &bundle, &truth, |_| {}).unwrap();
+    let original = read_bundle(&bundle).unwrap();
+    let with_frames: Vec<String> = original
+        .campaign
+        .trials
+        .iter()
+        .filter(|t| !t.frames.is_empty())
+        .map(|t| t.trial.id.clone())
+        .collect();
+    assert_eq!(with_frames.len(), 2, "the probe and the first needle trial");
+    // A lab's bundle that hands over frames instead of tracks for them.
+    let frames_only = dir.path().join("frames-only");
+    copy_tree(&bundle, &frames_only);
+    for id in &with_frames {
+        std::fs::remove_file(frames_only.join("trials").join(id).join("markers.csv")).unwrap();
+    }
+    let before = listing(&frames_only);
+    let mut loaded = read_bundle(&frames_only).unwrap();
+    assert!(
+        with_frames
+            .iter()
+            .all(|id| loaded.trial(id).unwrap().markers.is_none())
+    );
+    let done = track_untracked_trials(&mut loaded).unwrap();
+    assert_eq!(
+        listing(&frames_only),
+        before,
+        "nothing written to the bundle"
+    );
+    assert!(done.uncalibrated.is_empty());
+    assert!(done.calibration.is_some());
+    let tracked: Vec<&str> = done.tracked.iter().map(|t| t.id.as_str()).collect();
+    assert_eq!(tracked, with_frames);
+    for line in done.summary() {
+        println!("{line}");
+    }
+
+    let (mut worst, mut sum_sq, mut rows) = (0.0f64, 0.0, 0usize);
+    for t in &done.tracked {
+        // The other needle trial still has its markers.csv, at the camera's 30 Hz.
+        match &t.rate {
+            FrameRate::OtherTrial { rate, .. } => assert!((rate - 30.0).abs() < 1e-4, "{rate}"),
+            other => panic!("rate {other:?}"),
+        }
+        assert_eq!(t.lost, 0);
+        let given = original.trial(&t.id).unwrap().markers.as_ref().unwrap();
+        let found = loaded.trial(&t.id).unwrap().markers.as_ref().unwrap();
+        let found_frames: Vec<_> = found.frames().collect();
+        assert_eq!(found_frames.len(), t.frames);
+        for frame in found_frames {
+            // markers.csv of the scenario is noise-free: the true positions.
+            let truth = given
+                .frames()
+                .find(|f| f.frame == frame.frame)
+                .expect("every rendered frame has rows in markers.csv");
+            // Times are written to the microsecond.
+            assert!((truth.t - frame.t).abs() < 1e-6, "{} {}", truth.t, frame.t);
+            for (id, position) in frame.iter() {
+                let expected = truth.position(id).unwrap();
+                let error = ((position[0] - expected[0]).powi(2)
+                    + (position[1] - expected[1]).powi(2))
+                .sqrt();
+                worst = worst.max(error);
+                sum_sq += error * error;
+                rows += 1;
+            }
+        }
+        assert!(found.has_sigma(), "tracked rows carry the tracker's sx,sy");
+    }
+    assert_eq!(rows, (7 + 3) * 36);
+    let rms = (sum_sq / rows as f64).sqrt();
+    println!(
+        "tracked with the bundle's own calibration against the truth over {rows} rows: rms {:.2} um, worst {:.2} um",
+        rms * 1e6,
+        worst * 1e6
+    );
+    assert!(worst < 3e-6, "worst {worst} m");
+
+    // Without calibration/ nothing can be tracked: said, and nothing invented.
+    std::fs::remove_dir_all(frames_only.join("calibration")).unwrap();
+    let mut loaded = read_bundle(&frames_only).unwrap();
+    let done = track_untracked_trials(&mut loaded).unwrap();
+    assert!(done.tracked.is_empty() && done.calibration.is_none());
+    assert_eq!(done.uncalibrated, with_frames);
+    assert!(
+        with_frames
+            .iter()
+            .all(|id| loaded.trial(id).unwrap().markers.is_none())
+    );
+    assert!(done.summary()[0].contains("no calibration/ folder"));
 }
 
 #[test]

@@ -119,6 +119,15 @@ pub enum VisionError {
         /// The parser's message, with line and column.
         reason: String,
     },
+    /// A bundle's calibration description could not be read, or tracks
+    /// could not become a trial's marker track.
+    #[error("{context}: {source}")]
+    Bundle {
+        /// What was being read or built.
+        context: String,
+        /// The bundle error.
+        source: needle_data::BundleError,
+    },
     /// A markers.csv could not be written.
     #[error("{path}: {reason}")]
     Csv {

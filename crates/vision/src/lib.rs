@@ -27,6 +27,10 @@
 //!   the calibration is stored as RON.
 //! - **Frames to `markers.csv`** ([`track_frames`], [`track_frames_to_csv`]):
 //!   the library side of `cargo xtask track`.
+//! - **A bundle's camera side** ([`calibrate_from_bundle`],
+//!   [`track_untracked_trials`]): calibrate from a bundle's `calibration/`
+//!   folder and give every trial that has frames but no `markers.csv` the
+//!   tracks of its frames, in memory, before anything fits its markers.
 //!
 //! ## Place in the chain
 //!
@@ -78,6 +82,7 @@
 //! # Ok::<(), needle_vision::VisionError>(())
 //! ```
 
+mod bundle;
 mod calibrate;
 mod camera;
 mod detect;
@@ -91,6 +96,10 @@ mod track;
 mod track_frames;
 mod undistort;
 
+pub use bundle::{
+    DEFAULT_FRAME_RATE, FrameRate, FromFrames, TrackedTrial, calibrate_from_bundle, frame_rate,
+    track_trial, track_untracked_trials,
+};
 pub use calibrate::{
     CalibrationFit, CalibrationView, FixedParameters, calibrate, homography, initialise, refine,
 };
