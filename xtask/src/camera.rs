@@ -6,11 +6,13 @@ use needle_data::LoadedBundle;
 use needle_vision::track_untracked_trials;
 
 /// Gives the bundle's trials that have frames but no `markers.csv` the
-/// tracks of their frames (in memory) and prints what was done.
-pub fn track_untracked(bundle: &mut LoadedBundle) -> Result<(), String> {
+/// tracks of their frames (in memory), prints what was done and returns
+/// the same lines (none when no trial needed it).
+pub fn track_untracked(bundle: &mut LoadedBundle) -> Result<Vec<String>, String> {
     let done = track_untracked_trials(bundle).map_err(|e| e.to_string())?;
-    for line in done.summary() {
+    let lines = done.summary();
+    for line in &lines {
         println!("{line}");
     }
-    Ok(())
+    Ok(lines)
 }

@@ -13,7 +13,7 @@ use needle_diagnose::{DiagnoseOptions, ModelSpec, diagnose_campaign, write_outpu
 use crate::camera::track_untracked;
 use crate::diagnosis_report::{add_sections, print_ladder};
 use crate::output::OutputFolder;
-use crate::report::Report;
+use crate::report::{Report, escape};
 
 /// Options of `cargo xtask diagnose`.
 #[derive(Args)]
@@ -77,7 +77,7 @@ pub fn run(args: &DiagnoseArgs) -> Result<(), String> {
         BundleError::Invalid { report } => format!("{report}"),
         other => other.to_string(),
     })?;
-    track_untracked(&mut bundle)?;
+    let from_frames = track_untracked(&mut bundle)?;
     sequential_linear_algebra();
     let result =
         diagnose_campaign(&bundle.campaign, &model, &options).map_err(|e| e.to_string())?;
@@ -86,6 +86,19 @@ pub fn run(args: &DiagnoseArgs) -> Result<(), String> {
     print_ladder(&result);
     println!("noise: {}", result.diagnosis.noise);
     let mut report = Report::default();
+    if !from_frames.is_empty() {
+        let lines: Vec<String> = from_frames.iter().map(|l| escape(l)).collect();
+        report.section(
+            "Trials tracked from their camera frames",
+            &format!(
+                "These trials have frames and no <code>markers.csv</code>; their markers were \
+                 tracked (<code>needle_vision::track_untracked_trials</code>) and weighed like \
+                 any marker row without <code>sx,sy</code>.<br>{}",
+                lines.join("<br>")
+            ),
+            &[],
+        );
+    }
     add_sections(&mut report, &result, "1.")?;
     folder.write("report.html", &report.to_html("needle diagnosis"))?;
     let finished = folder.finish()?;

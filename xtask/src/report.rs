@@ -62,7 +62,8 @@ impl Report {
     }
 }
 
-fn escape(text: &str) -> String {
+/// The text with HTML's special characters escaped.
+pub fn escape(text: &str) -> String {
     text.replace('&', "&amp;")
         .replace('<', "&lt;")
         .replace('>', "&gt;")

@@ -245,7 +245,7 @@ fn trials_with_frames_and_no_markers_csv_get_the_tracks_of_their_frames() {
                 rows += 1;
             }
         }
-        assert!(found.has_sigma(), "tracked rows carry the tracker's sx,sy");
+        assert!(!found.has_sigma(), "weighed by the bundle's marker noise");
     }
     assert_eq!(rows, (7 + 3) * 36);
     let rms = (sum_sq / rows as f64).sqrt();
