@@ -12,6 +12,17 @@
 //! acts over the plane's area, so one stiffness per unit area means the same
 //! platform in both.
 //!
+//! The slab is symmetric about its mid-plane and so is every load on it
+//! (the needle in the mid-plane, a probe evenly through the thickness) and
+//! every support but the foundation under its bottom face, so its
+//! displacement is symmetric: $u_x, u_y$ even in $z$, $u_z$ odd. A body
+//! spanning [`Span::UpperHalf`] meshes $z \in [0, t/2]$ only (the top half
+//! of needle-fem's mirrored slab), holds $u_z = 0$ on $z = 0$ and takes
+//! half of each mid-plane load: the mirrored whole slab's displacement
+//! exactly, on three node planes instead of five (needle-fem's test
+//! `upper_half_of_the_mirrored_slab_gives_its_displacement`). A foundation
+//! needs the whole slab.
+//!
 //! For `material_nonlinearity` a body also gives the neo-Hookean terms of
 //! its solutions to third order in the load (see `series`), on the same
 //! factorisation.
@@ -85,6 +96,7 @@ pub(crate) struct Body<const D: usize> {
     pub element_y: Vec<[f64; 2]>,
     marker_weights: Vec<Vec<(usize, f64)>>,
     fixed_faces: Vec<Face>,
+    span: Span,
     rigid: LinearProblem<D>,
     /// Shortest y extent of an element (m).
     element_size: f64,
@@ -95,29 +107,48 @@ pub(crate) struct Body<const D: usize> {
     cache: Mutex<Vec<(Key, Arc<Entry<D>>)>>,
 }
 
+/// Which part of the phantom's thickness a body meshes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Span {
+    /// All of it: the plane model, or a slab with a foundation.
+    Whole,
+    /// The half above the mid-plane of a slab symmetric about it (see the
+    /// module doc).
+    UpperHalf,
+}
+
 /// A point of the plane at height `z` (ignored in 2-D).
 fn lift<const D: usize>(xy: [f64; 2], z: f64) -> [f64; D] {
     std::array::from_fn(|i| if i < 2 { xy[i] } else { z })
 }
 
-fn fixed_dirichlet<const D: usize>(mesh: &Mesh<D>, faces: &[Face]) -> Dirichlet {
+/// The held dofs: every dof of the `faces`, and on a body of the upper
+/// half $u_z$ on its bottom face, the mid-plane.
+fn held<const D: usize>(mesh: &Mesh<D>, faces: &[Face], span: Span) -> Dirichlet {
     let mut dirichlet = Dirichlet::new();
+    // Values are zero and dofs valid: setting cannot fail.
     for &face in faces {
         for (dof, value) in Dirichlet::fixed_face(mesh, face).iter() {
-            // Values are zero and dofs valid: setting cannot fail.
             let _ = dirichlet.set(dof, value);
+        }
+    }
+    if span == Span::UpperHalf && D == 3 {
+        for n in mesh.nodes_on_face(Face::Bottom) {
+            let _ = dirichlet.set(D * n + 2, 0.0);
         }
     }
     dirichlet
 }
 
 impl<const D: usize> Body<D> {
-    /// A body on `mesh` (every element its own region) with the markers at
-    /// `rest` on the top face (`z = thickness / 2` in 3-D).
+    /// A body on `mesh` (every element its own region) spanning `span` of
+    /// the `thickness`, with the markers at `rest` on the top face
+    /// (`z = thickness / 2` in 3-D).
     pub fn new(
         mesh: Mesh<D>,
         formulation: Formulation,
         thickness: f64,
+        span: Span,
         fixed_faces: Vec<Face>,
         rest: &[[f64; 2]],
     ) -> Result<Self, DiagnoseError> {
@@ -159,7 +190,7 @@ impl<const D: usize> Body<D> {
         let rigid = LinearProblem::new(
             Assembler::new(mesh.clone(), formulation)?,
             vec![],
-            fixed_dirichlet(&mesh, &fixed_faces),
+            held(&mesh, &fixed_faces, span),
         )?;
         let element_size = element_y
             .iter()
@@ -178,6 +209,7 @@ impl<const D: usize> Body<D> {
             element_y,
             marker_weights,
             fixed_faces,
+            span,
             rigid,
             element_size,
             hyperelastic: OnceLock::new(),
@@ -304,10 +336,18 @@ impl<const D: usize> Body<D> {
                     stiffness: [1.0; D],
                 });
             }
-            Dirichlet::new()
+            held(&self.mesh, &[], self.span)
         } else {
-            fixed_dirichlet(&self.mesh, &self.fixed_faces)
+            held(&self.mesh, &self.fixed_faces, self.span)
         };
+        if founded && self.span == Span::UpperHalf {
+            return Err(DiagnoseError::InvalidOption {
+                field: "foundation",
+                reason: "a foundation under the slab breaks its symmetry about the mid-plane; \
+                         it needs the whole slab"
+                    .into(),
+            });
+        }
         if founded {
             springs.push(if D == 2 {
                 Support::Foundation {
@@ -505,7 +545,7 @@ impl<const D: usize> Body<D> {
                 add_line_load(
                     locator,
                     &mut load,
-                    lift(point, -0.5 * self.thickness),
+                    lift(point, self.bottom()),
                     lift(point, 0.5 * self.thickness),
                     &LineDensity::Function {
                         density: &density,
@@ -531,6 +571,7 @@ impl<const D: usize> Body<D> {
     ) -> Result<Vec<f64>, DiagnoseError> {
         let mut load = vec![0.0; self.mesh.dof_count()];
         let direction = shaft.direction;
+        let share = self.mid_plane_share();
         for piece in placement.pieces(shaft) {
             let material_length =
                 (piece.end[0] - piece.start[0]).hypot(piece.end[1] - piece.start[1]);
@@ -541,7 +582,7 @@ impl<const D: usize> Body<D> {
             let stretch = spatial_length / material_length;
             // `m` is the material arclength along the piece.
             let along = |m: f64| -> [f64; D] {
-                let q = stretch * density(piece.s_start + m * stretch);
+                let q = share * stretch * density(piece.s_start + m * stretch);
                 lift([q * direction[0], q * direction[1]], 0.0)
             };
             let kinks = breakpoints
@@ -597,6 +638,22 @@ impl<const D: usize> Body<D> {
         self.extent
     }
 
+    /// z of the bottom face (3-D).
+    fn bottom(&self) -> f64 {
+        match self.span {
+            Span::Whole => -0.5 * self.thickness,
+            Span::UpperHalf => 0.0,
+        }
+    }
+
+    /// The share of a load in the mid-plane that this body carries.
+    fn mid_plane_share(&self) -> f64 {
+        match self.span {
+            Span::Whole => 1.0,
+            Span::UpperHalf => 0.5,
+        }
+    }
+
     /// In-plane displacement of every marker in the solution `u`, divided
     /// by the factorisation's `scale`.
     pub fn markers(&self, u: &[f64], scale: f64) -> Vec<[f64; 2]> {
@@ -643,6 +700,7 @@ mod tests {
                 thickness: THICKNESS,
             },
             THICKNESS,
+            Span::Whole,
             vec![Face::Back],
             &rest,
         )
@@ -660,6 +718,7 @@ mod tests {
             slab,
             Formulation::Solid,
             THICKNESS,
+            Span::Whole,
             vec![Face::Back],
             &[[0.0375, 0.0375]],
         )

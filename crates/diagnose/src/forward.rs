@@ -69,7 +69,9 @@
 
 use needle_fem::{ElementKind, Face, Formulation, MarkerGrid, RectangleMesh, SlabMesh};
 
-use crate::body::Body;
+use std::sync::{Arc, Mutex};
+
+use crate::body::{Body, Span};
 use crate::effect::{Geometry, ShaftPoint, SupportSpec, TrialContext};
 use crate::error::DiagnoseError;
 use crate::model::Model;
@@ -197,7 +199,13 @@ pub(crate) struct Forward {
     placement_rounds: usize,
     slab_placement_rounds: usize,
     plane: Body<2>,
-    slab: Body<3>,
+    /// The `out_of_plane` slab's upper half (see `body`), and the whole
+    /// mirrored slab, made on first use, for a foundation under it.
+    slab: Arc<Body<3>>,
+    whole_slab: Mutex<Option<Arc<Body<3>>>>,
+    slab_plan: SlabMesh,
+    fixed: Vec<Face>,
+    rest: Vec<[f64; 2]>,
 }
 
 fn fem_face(face: needle_data::Face) -> Face {
@@ -256,19 +264,21 @@ impl Forward {
             plan(width, depth, rest, refinement)?.build(ElementKind::Tri6)?,
             Formulation::PlaneStrain { thickness },
             thickness,
+            Span::Whole,
             fixed.clone(),
             rest,
         )?;
+        let slab_plan = SlabMesh::new(
+            plan(width, depth, rest, slab_refinement)?,
+            thickness,
+            SLAB_LAYERS,
+        )?;
         let slab = Body::new(
-            SlabMesh::new(
-                plan(width, depth, rest, slab_refinement)?,
-                thickness,
-                SLAB_LAYERS,
-            )?
-            .build(ElementKind::Tet10)?,
+            slab_plan.build_upper_half(ElementKind::Tet10)?,
             Formulation::Solid,
             thickness,
-            fixed,
+            Span::UpperHalf,
+            fixed.clone(),
             rest,
         )?;
         let n = rest.len().max(1) as f64;
@@ -289,10 +299,38 @@ impl Forward {
                 image_radius: if radius > 0.0 { radius } else { 0.5 * width },
             },
             plane,
-            slab,
+            slab: Arc::new(slab),
+            whole_slab: Mutex::new(None),
+            slab_plan,
+            fixed,
+            rest: rest.to_vec(),
             placement_rounds: PLACEMENT_ROUNDS,
             slab_placement_rounds: SLAB_PLACEMENT_ROUNDS,
         })
+    }
+
+    /// The slab body for `supports`: the upper half, or the whole mirrored
+    /// slab when a foundation acts under it. With no foundation the two
+    /// give the same displacement, so a finite-difference step off a
+    /// foundation of zero differences the foundation alone.
+    fn slab_for(&self, supports: SupportSpec) -> Result<Arc<Body<3>>, DiagnoseError> {
+        if supports.foundation <= 0.0 {
+            return Ok(Arc::clone(&self.slab));
+        }
+        let mut whole = self.whole_slab.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(body) = whole.as_ref() {
+            return Ok(Arc::clone(body));
+        }
+        let body = Arc::new(Body::new(
+            self.slab_plan.build_symmetric(ElementKind::Tet10)?,
+            Formulation::Solid,
+            self.geometry.thickness,
+            Span::Whole,
+            self.fixed.clone(),
+            &self.rest,
+        )?);
+        *whole = Some(Arc::clone(&body));
+        Ok(body)
     }
 
     /// Element moduli of a trial on `body`.
@@ -639,9 +677,10 @@ impl Forward {
                 || {
                     (slab_weight != 0.0)
                         .then(|| {
-                            let moduli = Self::moduli(&self.slab, model, p, &obs.trials[first]);
+                            let slab = self.slab_for(supports)?;
+                            let moduli = Self::moduli(&slab, model, p, &obs.trials[first]);
                             let nu = model.baseline(p).poisson_ratio;
-                            self.slab.factorized(&moduli, nu, supports)
+                            slab.factorized(&moduli, nu, supports)
                         })
                         .transpose()
                 },
@@ -653,8 +692,9 @@ impl Forward {
             }
             if slab_weight != 0.0 {
                 let (slab_start, slab_rounds) = start.on(&needle_frames, |s| &s.slab);
+                let slab = self.slab_for(supports)?;
                 let slab_placed = self.add_columns(
-                    &self.slab,
+                    &slab,
                     slab_weight,
                     0.0,
                     model,
@@ -1098,6 +1138,50 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// Without a foundation the slab is its upper half; any foundation
+    /// takes the whole mirrored slab. The two must agree at zero, or a
+    /// finite-difference step off it would difference the meshes: the
+    /// half's prediction at 0 against the whole's extrapolated from
+    /// $\epsilon$ and $2\epsilon$.
+    #[test]
+    fn the_slab_halved_at_no_foundation_is_the_whole_slabs_limit() {
+        let (obs, forward, start) = paper_forward();
+        let model = Model::new(
+            &ModelSpec::from_ids(&["out_of_plane", "platform_friction"]).unwrap(),
+            &forward.geometry,
+            start,
+        )
+        .unwrap();
+        let scale = model.parameters[5].scale;
+        let at = |foundation: f64| {
+            forward
+                .predict(&model, &[25.0e3, 0.45, 10.0, 0.002, 1.0, foundation], &obs)
+                .unwrap()
+                .values
+        };
+        let epsilon = 1e-6 * scale;
+        let (half, once, twice) = (at(0.0), at(epsilon), at(2.0 * epsilon));
+        assert!(forward.whole_slab.lock().unwrap().is_some());
+        let largest = half.iter().map(|v| v.abs()).fold(0.0, f64::max);
+        let (mut gap, mut step) = (0.0f64, 0.0f64);
+        for ((h, a), b) in half.iter().zip(&once).zip(&twice) {
+            gap = gap.max((h - (2.0 * a - b)).abs());
+            step = step.max((b - a).abs());
+        }
+        println!("largest {largest:.3e}, step {step:.3e}, half vs whole at 0 {gap:.3e}");
+        assert!(step > 0.0, "the foundation acts");
+        assert!(gap <= 1e-9 * largest, "gap {gap} of {largest}");
+        // At the step the score test takes, the mesh's rounding is far
+        // below the foundation's own effect.
+        let score_step = at(1e-3 * scale);
+        let effect = score_step
+            .iter()
+            .zip(&half)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(gap < 1e-6 * effect, "gap {gap}, effect {effect}");
     }
 
     #[test]

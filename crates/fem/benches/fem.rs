@@ -130,5 +130,64 @@ fn bench_slab(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench_plane, bench_slab);
+/// The diagnosis's `out_of_plane` slab (the default 21 x 21 marker grid:
+/// 20 x 20 plan cells, two layers): the whole slab mirrored in its
+/// mid-plane against its upper half with u_z held on z = 0, which gives
+/// the same displacement. Factorisation, and a block of 160 right-hand
+/// sides (a fit evaluation's needle frames times their placement rounds).
+fn bench_slab_halves(c: &mut Criterion) {
+    let mut group = c.benchmark_group("slab_mirrored");
+    group.sample_size(10);
+    let slab = SlabMesh::new(
+        RectangleMesh::uniform(0.075, 0.075, 20, 20).unwrap(),
+        0.0075,
+        2,
+    )
+    .unwrap();
+    for (name, mesh) in [
+        ("whole", slab.build_symmetric(ElementKind::Tet10).unwrap()),
+        (
+            "upper_half",
+            slab.build_upper_half(ElementKind::Tet10).unwrap(),
+        ),
+    ] {
+        let mut held = Dirichlet::fixed_face(&mesh, Face::Back);
+        if name == "upper_half" {
+            for n in mesh.nodes_on_face(Face::Bottom) {
+                held.set(3 * n + 2, 0.0).unwrap();
+            }
+        }
+        let mut problem = LinearProblem::new(
+            Assembler::new(mesh, Formulation::Solid).unwrap(),
+            vec![],
+            held,
+        )
+        .unwrap();
+        let dofs = problem.mesh().dof_count();
+        let loads: Vec<Vec<f64>> = (0..160)
+            .map(|k| {
+                (0..dofs)
+                    .map(|d| {
+                        if d % 3 == 1 && d % 160 == k {
+                            -1e-3
+                        } else {
+                            0.0
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        let refs: Vec<&[f64]> = loads.iter().map(Vec::as_slice).collect();
+        group.bench_function(format!("assemble_factorize/{name}/{dofs}"), |b| {
+            b.iter(|| problem.factorize(&materials()).unwrap())
+        });
+        problem.factorize(&materials()).unwrap();
+        group.bench_function(format!("solve_160/{name}/{dofs}"), |b| {
+            b.iter(|| black_box(problem.displacements_many(&refs).unwrap()))
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench_plane, bench_slab, bench_slab_halves);
 criterion_main!(benches);

@@ -791,3 +791,120 @@ proptest! {
         }
     }
 }
+
+/// The slab mirrored in its mid-plane, under a needle-like line load in
+/// the mid-plane and a probe-like line through the thickness, with the
+/// back face held: its displacement is symmetric about z = 0, and the
+/// upper half alone (u_z = 0 held on z = 0, half the mid-plane load, the
+/// same density through its half of the thickness) gives it exactly.
+#[test]
+fn upper_half_of_the_mirrored_slab_gives_its_displacement() {
+    let (width, depth, thickness) = (0.075, 0.06, 0.0075);
+    let plan = needle_fem::RectangleMesh::uniform(width, depth, 5, 4).unwrap();
+    let material = Material::new(2.5e4, 0.48).unwrap();
+    for layers in [2, 4] {
+        let slab = needle_fem::SlabMesh::new(plan.clone(), thickness, layers).unwrap();
+        let solve = |mesh: Mesh<3>, share: f64, bottom: f64| -> (Mesh<3>, Vec<f64>) {
+            let locator = Locator::new(&mesh);
+            let mut loads = vec![0.0; mesh.dof_count()];
+            let needle = |s: f64| [-3.0 * share, share * (20.0 + 100.0 * s), 0.0];
+            needle_fem::load::add_line_load(
+                &locator,
+                &mut loads,
+                [0.02, 0.0, 0.0],
+                [0.027, 0.041, 0.0],
+                &needle_fem::LineDensity::Function {
+                    density: &needle,
+                    breakpoints: vec![],
+                },
+            )
+            .unwrap();
+            let probe = |_: f64| [0.5 / thickness, 2.0 / thickness, 0.0];
+            needle_fem::load::add_line_load(
+                &locator,
+                &mut loads,
+                [0.055, 0.0, bottom],
+                [0.055, 0.0, 0.5 * thickness],
+                &needle_fem::LineDensity::Function {
+                    density: &probe,
+                    breakpoints: vec![],
+                },
+            )
+            .unwrap();
+            let mut dirichlet = Dirichlet::fixed_face(&mesh, needle_fem::Face::Back);
+            if bottom == 0.0 {
+                for n in mesh.nodes_on_face(needle_fem::Face::Bottom) {
+                    dirichlet.set(3 * n + 2, 0.0).unwrap();
+                }
+            }
+            let mut problem = LinearProblem::new(
+                Assembler::new(mesh, Formulation::Solid).unwrap(),
+                vec![],
+                dirichlet,
+            )
+            .unwrap();
+            problem
+                .factorize(&Materials::homogeneous(material))
+                .unwrap();
+            let u = problem.solve(&loads).unwrap().displacement;
+            (problem.mesh().clone(), u)
+        };
+        let (full, u_full) = solve(
+            slab.build_symmetric(ElementKind::Tet10).unwrap(),
+            1.0,
+            -0.5 * thickness,
+        );
+        let (half, u_half) = solve(slab.build_upper_half(ElementKind::Tet10).unwrap(), 0.5, 0.0);
+        assert_eq!(full.element_count(), 2 * half.element_count());
+        let largest = u_full.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        assert!(largest > 1e-4, "the loads move the slab: {largest}");
+        let key = |p: [f64; 3]| p.map(|c| (c * 1e9).round() as i64);
+        let index: std::collections::HashMap<[i64; 3], usize> = (0..full.node_count())
+            .map(|n| (key(full.node(n)), n))
+            .collect();
+        let (mut symmetry, mut halves) = (0.0f64, 0.0f64);
+        for n in 0..full.node_count() {
+            let [x, y, z] = full.node(n);
+            let m = index[&key([x, y, -z])];
+            for (axis, sign) in [(0, 1.0), (1, 1.0), (2, -1.0)] {
+                symmetry = symmetry.max((u_full[3 * n + axis] - sign * u_full[3 * m + axis]).abs());
+            }
+        }
+        for n in 0..half.node_count() {
+            let m = index[&key(half.node(n))];
+            for axis in 0..3 {
+                halves = halves.max((u_half[3 * n + axis] - u_full[3 * m + axis]).abs());
+            }
+        }
+        assert!(
+            symmetry < 1e-9 * largest,
+            "{layers} layers: asymmetry {symmetry} of {largest}"
+        );
+        assert!(
+            halves < 1e-9 * largest,
+            "{layers} layers: half vs whole {halves} of {largest}"
+        );
+        // Kuhn's subdivision alone is not symmetric: the check above could fail.
+        let (kuhn, u_kuhn) = solve(
+            slab.build(ElementKind::Tet10).unwrap(),
+            1.0,
+            -0.5 * thickness,
+        );
+        let asymmetry = (0..kuhn.node_count())
+            .map(|n| {
+                let [x, y, z] = kuhn.node(n);
+                let m = (0..kuhn.node_count())
+                    .find(|&m| key(kuhn.node(m)) == key([x, y, -z]))
+                    .unwrap();
+                (u_kuhn[3 * n] - u_kuhn[3 * m]).abs()
+            })
+            .fold(0.0f64, f64::max);
+        println!(
+            "{layers} layers: largest {largest:.3e} m; mirrored asymmetry {symmetry:.1e}, half vs whole {halves:.1e}, Kuhn's asymmetry {asymmetry:.1e}"
+        );
+        assert!(
+            asymmetry > 1e3 * symmetry.max(1e-15 * largest),
+            "{asymmetry}"
+        );
+    }
+}
