@@ -20,6 +20,14 @@
 //! the marker interpolation operator) computed once per needle line, one
 //! factorisation and one solve per loaded dof. The band's own displacements
 //! are kept too: they place the load of the next round.
+//!
+//! The slab and its loads are symmetric about the mid-plane, so the slab
+//! is meshed as the upper half of needle-fem's mirrored slab
+//! (`SlabMesh::build_upper_half`), $u_z = 0$ held on $z = 0$, and a unit
+//! force on a mid-plane node is half a unit on the half: the mirrored
+//! whole slab's responses exactly (needle-fem's test
+//! `upper_half_of_the_mirrored_slab_gives_its_displacement`), on three node
+//! planes of five for two layers.
 
 use nalgebra::{DMatrix, DVector};
 use needle_data::Phantom;
@@ -320,8 +328,8 @@ impl ShaftResponse {
                         reason: "must be even and at least 2, so that the needle's mid-plane is a node plane",
                     });
                 }
-                let mut mesh =
-                    SlabMesh::new(plan, phantom.thickness, layers)?.build(ElementKind::Tet10)?;
+                let mut mesh = SlabMesh::new(plan, phantom.thickness, layers)?
+                    .build_upper_half(ElementKind::Tet10)?;
                 mesh.assign_regions(|c| material.region_of(c[1]));
                 let tolerance = 1e-9 * phantom.thickness;
                 let nodes = band_nodes(&mesh, entry, axis, halfwidth, |x| x[2].abs() <= tolerance);
@@ -355,6 +363,7 @@ impl ShaftResponse {
                     &layout.rest,
                     &loaded,
                     &in_plane,
+                    Span::Whole,
                 )?
             }
             ModelMesh::Slab(m) => {
@@ -368,6 +377,7 @@ impl ShaftResponse {
                     &points,
                     &loaded,
                     &in_plane,
+                    Span::UpperHalf,
                 )?
             }
         };
@@ -635,6 +645,17 @@ fn band_nodes<const D: usize>(
 /// Factorises the clamped model and returns, for a unit force on each dof
 /// of `loaded`, the displacements at the markers (interpolated at
 /// `points`, components x and y) and at the dofs `sampled`.
+/// What a model mesh spans of the phantom's thickness.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Span {
+    /// All of it (the plane model).
+    Whole,
+    /// The half above the mid-plane, its bottom face the mid-plane (the
+    /// slab; see the module doc).
+    UpperHalf,
+}
+
+#[allow(clippy::too_many_arguments)]
 fn unit_responses<const D: usize>(
     mesh: &Mesh<D>,
     formulation: Formulation,
@@ -643,12 +664,23 @@ fn unit_responses<const D: usize>(
     points: &[[f64; D]],
     loaded: &[usize],
     sampled: &[usize],
+    span: Span,
 ) -> Result<(DMatrix<f64>, DMatrix<f64>), ForceError> {
     let locator = Locator::new(mesh);
     let mut dirichlet = Dirichlet::new();
     for &face in fixed {
         dirichlet.fix_nodes(mesh, &mesh.nodes_on_face(face))?;
     }
+    // The loaded nodes lie on the mid-plane: on the half, each carries half.
+    let unit = match span {
+        Span::Whole => 1.0,
+        Span::UpperHalf => {
+            for n in mesh.nodes_on_face(Face::Bottom) {
+                dirichlet.set(D * n + 2, 0.0)?;
+            }
+            0.5
+        }
+    };
     let interpolation = locator.interpolation_matrix(points, &[0, 1])?;
     let mut problem = LinearProblem::new(
         Assembler::new(mesh.clone(), formulation)?,
@@ -660,7 +692,7 @@ fn unit_responses<const D: usize>(
     let mut columns = faer::Mat::<f64>::zeros(problem.free_dofs().len(), loaded.len());
     for (i, &dof) in loaded.iter().enumerate() {
         if let Some(k) = problem.reduced_index(dof) {
-            columns[(k, i)] = 1.0;
+            columns[(k, i)] = unit;
         }
     }
     problem.solve_reduced_in_place(columns.as_mut())?;

@@ -47,16 +47,23 @@ pub(crate) struct FeSystem<const D: usize> {
 
 impl<const D: usize> FeSystem<D> {
     /// Sets up the system on `mesh` with every node of the `fixed` faces
-    /// held.
+    /// held, and the last component (z) of every node of the `symmetry`
+    /// face (a mirror plane of the body and its loads).
     pub fn new(
         mesh: Mesh<D>,
         formulation: Formulation,
         fixed: &[Face],
+        symmetry: Option<Face>,
         markers: Vec<NodeWeights>,
     ) -> Result<Self, IdentifyError> {
         let mut dirichlet = Dirichlet::new();
         for &face in fixed {
             dirichlet.fix_nodes(&mesh, &mesh.nodes_on_face(face))?;
+        }
+        if let Some(face) = symmetry {
+            for n in mesh.nodes_on_face(face) {
+                dirichlet.set(D * n + D - 1, 0.0)?;
+            }
         }
         let region_count = mesh.region_count();
         let system = LinearProblem::new(

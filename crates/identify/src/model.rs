@@ -16,7 +16,14 @@
 //! distributed by the shape functions at that point (`needle-fem`'s
 //! consistent point force); in the slab the probe presses the whole
 //! thickness of the face, so each sample is a uniform line load along z
-//! from $z = -t/2$ to $t/2$. The sensitivities follow from differentiating
+//! from $z = -t/2$ to $t/2$. The slab with an even number of layers is
+//! meshed as the upper half $z \in [0, t/2]$ of needle-fem's slab mirrored
+//! in its mid-plane, $u_z = 0$ held on $z = 0$ (the probe loads and the
+//! fixed faces are symmetric about it, so this is the mirrored whole
+//! slab's solution exactly, on three node planes of five for two layers;
+//! needle-fem's test `upper_half_of_the_mirrored_slab_gives_its_displacement`);
+//! an odd number of layers has no mid-plane node plane and is meshed whole.
+//! The sensitivities follow from differentiating
 //! $K U = B$: $\partial U/\partial p = -K^{-1}\,(\partial K/\partial p)\,U$
 //! for the material, $\partial U/\partial a = K^{-1}\,\partial B/\partial a$
 //! for the width (a central difference of the load, which is smooth in
@@ -88,6 +95,8 @@ pub struct ProbeModel {
     lines: [Vec<f64>; 2],
     /// Width, depth and thickness of the phantom.
     extent: [f64; 3],
+    /// z of the mesh's bottom face: $-t/2$, or 0 for the slab's upper half.
+    bottom: f64,
     /// The unit loads at the last contact width asked for.
     loads: Mutex<Option<(f64, Vec<Vec<f64>>)>>,
 }
@@ -136,9 +145,19 @@ impl ProbeModel {
                     });
                 }
                 let slab = SlabMesh::new(plan.clone(), setup.thickness, spec.layers)?;
-                let mesh = with_regions(slab.build(element)?, &spec.regions)?;
-                System::Slab(slab_system(setup, mesh)?)
+                let half = spec.layers.is_multiple_of(2);
+                let mesh = if half {
+                    slab.build_upper_half(element)?
+                } else {
+                    slab.build(element)?
+                };
+                let mesh = with_regions(mesh, &spec.regions)?;
+                System::Slab(slab_system(setup, mesh, half)?)
             }
+        };
+        let bottom = match &system {
+            System::Slab(s) => s.mesh().nodes().iter().fold(0.0f64, |z, n| z.min(n[2])),
+            System::Plane(_) => -0.5 * setup.thickness,
         };
         let model = Self {
             system,
@@ -148,6 +167,7 @@ impl ProbeModel {
             marker_spacing,
             lines: [plan.x_lines, plan.y_lines],
             extent: [setup.width, setup.depth, setup.thickness],
+            bottom,
             loads: Mutex::new(None),
         };
         // Every load point must carry its force into the mesh.
@@ -258,7 +278,7 @@ impl ProbeModel {
                 for &(s, weight) in &rule {
                     let mut point = p;
                     point[along] = s;
-                    add_unit_force(&locator, &mut load, point, c, weight, t)
+                    add_unit_force(&locator, &mut load, point, c, weight, [self.bottom, t])
                         .map_err(|_| outside("load point", i, p))?;
                 }
                 loads.push(load);
@@ -321,11 +341,16 @@ fn plane_system(
         .enumerate()
         .map(|(i, &p)| locator.weights(p).ok_or_else(|| outside("marker", i, p)))
         .collect::<Result<Vec<_>, _>>()?;
-    FeSystem::new(mesh, formulation, &setup.fixed, markers)
+    FeSystem::new(mesh, formulation, &setup.fixed, None, markers)
 }
 
-/// The slab system: markers on the top face $z = t/2$.
-fn slab_system(setup: &ProbeSetup, mesh: Mesh<3>) -> Result<FeSystem<3>, IdentifyError> {
+/// The slab system: markers on the top face $z = t/2$; $u_z$ held on the
+/// bottom face of the `upper_half`.
+fn slab_system(
+    setup: &ProbeSetup,
+    mesh: Mesh<3>,
+    upper_half: bool,
+) -> Result<FeSystem<3>, IdentifyError> {
     let half = 0.5 * setup.thickness;
     let locator = Locator::new(&mesh);
     let markers = setup
@@ -338,20 +363,22 @@ fn slab_system(setup: &ProbeSetup, mesh: Mesh<3>) -> Result<FeSystem<3>, Identif
                 .ok_or_else(|| outside("marker", i, p))
         })
         .collect::<Result<Vec<_>, _>>()?;
-    FeSystem::new(mesh, Formulation::Solid, &setup.fixed, markers)
+    let symmetry = upper_half.then_some(Face::Bottom);
+    FeSystem::new(mesh, Formulation::Solid, &setup.fixed, symmetry, markers)
 }
 
 /// Adds `weight` times a unit force along axis `axis` at the boundary
 /// point `point`: a point force in the plane (`D = 2`), a uniform line load
 /// of density `weight / thickness` through the thickness of the slab
-/// (`D = 3`). Fails when the point (or the line) leaves the mesh.
+/// (`D = 3`), over the mesh's part of it, from `bottom` to $t/2$ (the upper
+/// half carries half). Fails when the point (or the line) leaves the mesh.
 fn add_unit_force<const D: usize>(
     locator: &Locator<'_, D>,
     load: &mut [f64],
     point: [f64; 2],
     axis: usize,
     weight: f64,
-    thickness: f64,
+    [bottom, thickness]: [f64; 2],
 ) -> Result<(), IdentifyError> {
     let mut force = [0.0; D];
     let (mut start, mut end) = ([0.0; D], [0.0; D]);
@@ -363,15 +390,17 @@ fn add_unit_force<const D: usize>(
         return Ok(());
     }
     force[axis] = weight / thickness;
-    start[2] = -0.5 * thickness;
+    start[2] = bottom;
     end[2] = 0.5 * thickness;
+    let length = end[2] - start[2];
     let line = LineDensity::Sampled {
-        arclength: vec![0.0, thickness],
+        arclength: vec![0.0, length],
         density: vec![force; 2],
     };
     let total = add_line_load(locator, load, start, end, &line)?;
-    // The quadrature must carry the whole force into the mesh.
-    if (total[axis] - weight).abs() > 1e-9 * weight.abs() {
+    // The quadrature must carry the mesh's share of the force into it.
+    let share = weight * length / thickness;
+    if (total[axis] - share).abs() > 1e-9 * weight.abs() {
         return Err(IdentifyError::Inconsistent(
             "line load leaves the mesh".into(),
         ));
