@@ -133,9 +133,7 @@ fn held<const D: usize>(mesh: &Mesh<D>, faces: &[Face], span: Span) -> Dirichlet
         }
     }
     if span == Span::UpperHalf && D == 3 {
-        for n in mesh.nodes_on_face(Face::Bottom) {
-            let _ = dirichlet.set(D * n + 2, 0.0);
-        }
+        let _ = dirichlet.set_nodes(mesh, &mesh.nodes_on_face(Face::Bottom), 2, 0.0);
     }
     dirichlet
 }

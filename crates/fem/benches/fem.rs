@@ -153,9 +153,8 @@ fn bench_slab_halves(c: &mut Criterion) {
     ] {
         let mut held = Dirichlet::fixed_face(&mesh, Face::Back);
         if name == "upper_half" {
-            for n in mesh.nodes_on_face(Face::Bottom) {
-                held.set(3 * n + 2, 0.0).unwrap();
-            }
+            held.set_nodes(&mesh, &mesh.nodes_on_face(Face::Bottom), 2, 0.0)
+                .unwrap();
         }
         let mut problem = LinearProblem::new(
             Assembler::new(mesh, Formulation::Solid).unwrap(),

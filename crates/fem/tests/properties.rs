@@ -833,9 +833,8 @@ fn upper_half_of_the_mirrored_slab_gives_its_displacement() {
             .unwrap();
             let mut dirichlet = Dirichlet::fixed_face(&mesh, needle_fem::Face::Back);
             if bottom == 0.0 {
-                for n in mesh.nodes_on_face(needle_fem::Face::Bottom) {
-                    dirichlet.set(3 * n + 2, 0.0).unwrap();
-                }
+                let mid_plane = mesh.nodes_on_face(needle_fem::Face::Bottom);
+                dirichlet.set_nodes(&mesh, &mid_plane, 2, 0.0).unwrap();
             }
             let mut problem = LinearProblem::new(
                 Assembler::new(mesh, Formulation::Solid).unwrap(),

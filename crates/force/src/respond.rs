@@ -675,9 +675,7 @@ fn unit_responses<const D: usize>(
     let unit = match span {
         Span::Whole => 1.0,
         Span::UpperHalf => {
-            for n in mesh.nodes_on_face(Face::Bottom) {
-                dirichlet.set(D * n + 2, 0.0)?;
-            }
+            dirichlet.set_nodes(mesh, &mesh.nodes_on_face(Face::Bottom), D - 1, 0.0)?;
             0.5
         }
     };

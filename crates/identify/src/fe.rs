@@ -61,9 +61,7 @@ impl<const D: usize> FeSystem<D> {
             dirichlet.fix_nodes(&mesh, &mesh.nodes_on_face(face))?;
         }
         if let Some(face) = symmetry {
-            for n in mesh.nodes_on_face(face) {
-                dirichlet.set(D * n + D - 1, 0.0)?;
-            }
+            dirichlet.set_nodes(&mesh, &mesh.nodes_on_face(face), D - 1, 0.0)?;
         }
         let region_count = mesh.region_count();
         let system = LinearProblem::new(
