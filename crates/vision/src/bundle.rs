@@ -308,3 +308,89 @@ pub fn track_untracked_trials(bundle: &mut LoadedBundle) -> Result<FromFrames, V
     out.calibration = Some(calibration);
     Ok(out)
 }
+
+#[cfg(test)]
+mod tests {
+    use needle_data::{
+        Campaign, Face, MarkerObservation, Phantom, Trial, TrialData, TrialKind, ValidationReport,
+    };
+
+    use super::*;
+
+    fn trial(id: &str, track: Option<(u64, f64)>) -> TrialData {
+        let mut data = TrialData::new(Trial {
+            id: id.into(),
+            kind: TrialKind::Needle,
+            velocity: 1e-3,
+            day: 0.0,
+        });
+        // Frames 0 and `last`, the last written at time `t` (rounded as
+        // a bundle writes it).
+        data.markers = track.map(|(last, t)| {
+            let mut frames = vec![(0, 0.0)];
+            if last > 0 {
+                frames.push((last, t));
+            }
+            let rows: Vec<MarkerObservation> = frames
+                .into_iter()
+                .map(|(frame, t)| MarkerObservation {
+                    frame,
+                    t,
+                    id: 0,
+                    x: 0.0,
+                    y: 0.0,
+                    sigma: None,
+                })
+                .collect();
+            MarkerTrack::from_observations(&rows).unwrap()
+        });
+        data
+    }
+
+    fn bundle(trials: Vec<TrialData>) -> LoadedBundle {
+        let phantom = Phantom {
+            width: 0.075,
+            depth: 0.075,
+            thickness: 0.0075,
+            fixed: vec![Face::Back],
+        };
+        let mut campaign = Campaign::new("rates", phantom);
+        campaign.trials = trials;
+        LoadedBundle {
+            root: "rates".into(),
+            campaign,
+            warnings: ValidationReport {
+                root: "rates".into(),
+                issues: Vec::new(),
+            },
+        }
+    }
+
+    #[test]
+    fn frame_numbers_are_read_at_the_first_rate_a_track_gives() {
+        let b = bundle(vec![
+            trial("a", None),
+            trial("b", Some((1500, 50.0))),
+            trial("c", Some((1000, 40.0))),
+        ]);
+        assert_eq!(frame_rate(&b, "c"), FrameRate::OwnTrack(25.0));
+        assert_eq!(
+            frame_rate(&b, "a"),
+            FrameRate::OtherTrial {
+                rate: 30.0,
+                trial: "b".into()
+            }
+        );
+        // The last frame is read, not the first after the start: frame 1
+        // at 0.033333 s would give 30.0003 Hz.
+        let rounded = bundle(vec![trial("d", Some((1, 0.033333)))]);
+        assert!((frame_rate(&rounded, "d").hz() - 30.0003).abs() < 1e-4);
+        // A track of the first frame alone gives no rate.
+        let none = bundle(vec![trial("a", None), trial("e", Some((0, 0.0)))]);
+        assert_eq!(
+            frame_rate(&none, "a"),
+            FrameRate::Assumed(DEFAULT_FRAME_RATE)
+        );
+        assert!(frame_rate(&none, "a").to_string().contains("assumed"));
+    }
+}
