@@ -642,9 +642,6 @@ fn band_nodes<const D: usize>(
     nodes
 }
 
-/// Factorises the clamped model and returns, for a unit force on each dof
-/// of `loaded`, the displacements at the markers (interpolated at
-/// `points`, components x and y) and at the dofs `sampled`.
 /// What a model mesh spans of the phantom's thickness.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Span {
@@ -655,6 +652,11 @@ enum Span {
     UpperHalf,
 }
 
+/// Factorises the clamped model and returns, for a unit force on each dof
+/// of `loaded` (on the mid-plane of a [`Span::UpperHalf`] mesh, half of
+/// one: the whole slab's unit force), the displacements at the markers
+/// (interpolated at `points`, components x and y) and at the dofs
+/// `sampled`.
 #[allow(clippy::too_many_arguments)]
 fn unit_responses<const D: usize>(
     mesh: &Mesh<D>,
