@@ -6,37 +6,18 @@
 
 mod common;
 
+use common::solve;
+
 use needle_fem::analytic::{
     Cantilever, Flamant, LameCylinder, ManufacturedSquare, plane_strain_equivalent,
 };
 use needle_fem::load::{add_body_force, add_nodal_force, add_traction};
 use needle_fem::norm::error_norms;
 use needle_fem::{
-    Assembler, Dirichlet, ElementKind, Face, Formulation, LinearProblem, Material, Materials, Mesh,
-    RectangleMesh, SlabMesh,
+    Dirichlet, ElementKind, Face, Formulation, Material, Materials, Mesh, RectangleMesh, SlabMesh,
 };
 
 const PLANE: Formulation = Formulation::PlaneStrain { thickness: 1.0 };
-
-fn solve<const D: usize>(
-    mesh: Mesh<D>,
-    formulation: Formulation,
-    dirichlet: Dirichlet,
-    material: Material,
-    loads: &[f64],
-) -> (Mesh<D>, Vec<f64>) {
-    let mut problem = LinearProblem::new(
-        Assembler::new(mesh, formulation).unwrap(),
-        vec![],
-        dirichlet,
-    )
-    .unwrap();
-    problem
-        .factorize(&Materials::homogeneous(material))
-        .unwrap();
-    let u = problem.solve(loads).unwrap().displacement;
-    (problem.mesh().clone(), u)
-}
 
 /// L2 and H1 errors of the manufactured solution on an `n x n` mesh.
 fn manufactured_errors(kind: ElementKind, n: usize) -> (f64, f64) {

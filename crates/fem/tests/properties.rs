@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{dense, distorted_cube, distorted_square};
+use common::{dense, distorted_cube, distorted_square, solve};
 use needle_fem::{
     Assembler, Dirichlet, ElementKind, Formulation, LinearProblem, Locator, Material, Materials,
     Mesh, Parameter,
@@ -804,7 +804,7 @@ fn upper_half_of_the_mirrored_slab_gives_its_displacement() {
     let material = Material::new(2.5e4, 0.48).unwrap();
     for layers in [2, 4] {
         let slab = needle_fem::SlabMesh::new(plan.clone(), thickness, layers).unwrap();
-        let solve = |mesh: Mesh<3>, share: f64, bottom: f64| -> (Mesh<3>, Vec<f64>) {
+        let respond = |mesh: Mesh<3>, share: f64, bottom: f64| -> (Mesh<3>, Vec<f64>) {
             let locator = Locator::new(&mesh);
             let mut loads = vec![0.0; mesh.dof_count()];
             let needle = |s: f64| [-3.0 * share, share * (20.0 + 100.0 * s), 0.0];
@@ -836,24 +836,14 @@ fn upper_half_of_the_mirrored_slab_gives_its_displacement() {
                 let mid_plane = mesh.nodes_on_face(needle_fem::Face::Bottom);
                 dirichlet.set_nodes(&mesh, &mid_plane, 2, 0.0).unwrap();
             }
-            let mut problem = LinearProblem::new(
-                Assembler::new(mesh, Formulation::Solid).unwrap(),
-                vec![],
-                dirichlet,
-            )
-            .unwrap();
-            problem
-                .factorize(&Materials::homogeneous(material))
-                .unwrap();
-            let u = problem.solve(&loads).unwrap().displacement;
-            (problem.mesh().clone(), u)
+            solve(mesh, Formulation::Solid, dirichlet, material, &loads)
         };
-        let (full, u_full) = solve(
+        let (full, u_full) = respond(
             slab.build_symmetric(ElementKind::Tet10).unwrap(),
             1.0,
             -0.5 * thickness,
         );
-        let (half, u_half) = solve(slab.build_upper_half(ElementKind::Tet10).unwrap(), 0.5, 0.0);
+        let (half, u_half) = respond(slab.build_upper_half(ElementKind::Tet10).unwrap(), 0.5, 0.0);
         assert_eq!(full.element_count(), 2 * half.element_count());
         let largest = u_full.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         assert!(largest > 1e-4, "the loads move the slab: {largest}");
@@ -884,7 +874,7 @@ fn upper_half_of_the_mirrored_slab_gives_its_displacement() {
             "{layers} layers: half vs whole {halves} of {largest}"
         );
         // Kuhn's subdivision alone is not symmetric: the check above could fail.
-        let (kuhn, u_kuhn) = solve(
+        let (kuhn, u_kuhn) = respond(
             slab.build(ElementKind::Tet10).unwrap(),
             1.0,
             -0.5 * thickness,

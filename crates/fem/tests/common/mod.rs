@@ -1,7 +1,10 @@
 //! Helpers shared by the test binaries.
 #![allow(dead_code)]
 
-use needle_fem::{ElementKind, Mesh, RectangleMesh, SlabMesh};
+use needle_fem::{
+    Assembler, Dirichlet, ElementKind, Formulation, LinearProblem, Material, Materials, Mesh,
+    RectangleMesh, SlabMesh,
+};
 
 /// Deterministic pseudo-random numbers in [-1, 1) from a seed (splitmix64).
 pub fn jitter(seed: u64, index: usize) -> f64 {
@@ -99,4 +102,26 @@ pub fn dense(matrix: &faer::sparse::SparseColMat<usize, f64>) -> nalgebra::DMatr
         }
     }
     d
+}
+
+/// The displacement of `mesh` under nodal `loads` with `dirichlet` held,
+/// one homogeneous `material`; the mesh is handed back.
+pub fn solve<const D: usize>(
+    mesh: Mesh<D>,
+    formulation: Formulation,
+    dirichlet: Dirichlet,
+    material: Material,
+    loads: &[f64],
+) -> (Mesh<D>, Vec<f64>) {
+    let mut problem = LinearProblem::new(
+        Assembler::new(mesh, formulation).unwrap(),
+        vec![],
+        dirichlet,
+    )
+    .unwrap();
+    problem
+        .factorize(&Materials::homogeneous(material))
+        .unwrap();
+    let u = problem.solve(loads).unwrap().displacement;
+    (problem.mesh().clone(), u)
 }
