@@ -937,12 +937,12 @@ mod tests {
 
     /// The baseline plus one effect.
     fn with_effect(forward: &Forward, start: Baseline, id: &str) -> Model {
-        Model::new(
-            &ModelSpec::from_ids(&[id]).unwrap(),
-            &forward.geometry,
-            start,
-        )
-        .unwrap()
+        with_effects(forward, start, &[id])
+    }
+
+    /// The baseline plus the effects `ids`.
+    fn with_effects(forward: &Forward, start: Baseline, ids: &[&str]) -> Model {
+        Model::new(&ModelSpec::from_ids(ids).unwrap(), &forward.geometry, start).unwrap()
     }
 
     #[test]
@@ -969,12 +969,11 @@ mod tests {
     #[test]
     fn the_tip_peak_scales_with_the_speed_dependent_friction() {
         let (_, forward, start) = paper_forward();
-        let model = Model::new(
-            &ModelSpec::from_ids(&["velocity_dependent_friction", "tip_cutting_force"]).unwrap(),
-            &forward.geometry,
+        let model = with_effects(
+            &forward,
             start,
-        )
-        .unwrap();
+            &["velocity_dependent_friction", "tip_cutting_force"],
+        );
         // q0 = 10 N/m, q1 = 500 N s/m^2, peak of relative height 1 over 6 mm.
         let p = [25.0e3, 0.45, 10.0, 0.002, 500.0, 1.0, 0.006];
         let length = 0.03;
@@ -1083,12 +1082,7 @@ mod tests {
     #[test]
     fn differences_placed_from_the_base_match_the_models_own() {
         let (obs, forward, start) = paper_forward();
-        let model = Model::new(
-            &ModelSpec::from_ids(&["tip_cutting_force", "out_of_plane"]).unwrap(),
-            &forward.geometry,
-            start,
-        )
-        .unwrap();
+        let model = with_effects(&forward, start, &["tip_cutting_force", "out_of_plane"]);
         let p = [25.0e3, 0.45, 10.0, 0.002, 2.0, 0.005, 0.7];
         let (cold, placements) = forward.predict_from(&model, &p, &obs, Start::Cold).unwrap();
         let near = |p: &[f64]| {
@@ -1148,12 +1142,7 @@ mod tests {
     #[test]
     fn the_slab_halved_at_no_foundation_is_the_whole_slabs_limit() {
         let (obs, forward, start) = paper_forward();
-        let model = Model::new(
-            &ModelSpec::from_ids(&["out_of_plane", "platform_friction"]).unwrap(),
-            &forward.geometry,
-            start,
-        )
-        .unwrap();
+        let model = with_effects(&forward, start, &["out_of_plane", "platform_friction"]);
         let scale = model.parameters[5].scale;
         let at = |foundation: f64| {
             forward
@@ -1249,12 +1238,7 @@ mod tests {
         // The probe frame's force sensitivity includes the nonlinear terms.
         assert_ne!(linear.probe_responses, full.probe_responses);
         // With the slab's kinematics the same terms (the plane's) are added.
-        let both = Model::new(
-            &ModelSpec::from_ids(&["out_of_plane", "material_nonlinearity"]).unwrap(),
-            &forward.geometry,
-            start,
-        )
-        .unwrap();
+        let both = with_effects(&forward, start, &["out_of_plane", "material_nonlinearity"]);
         let slab = |w: f64| {
             forward
                 .predict(&both, &[25.0e3, 0.45, 10.0, 0.002, 1.0, w], &obs)

@@ -122,7 +122,8 @@ impl ProbeModel {
             insert_lines(&mut plan.y_lines, boundaries, setup.depth)?;
         }
         let element = spec.mesh_element();
-        let system = match spec.plane {
+        let whole_bottom = -0.5 * setup.thickness;
+        let (system, bottom) = match spec.plane {
             PlaneModel::Strain | PlaneModel::Stress => {
                 let formulation = if spec.plane == PlaneModel::Strain {
                     Formulation::PlaneStrain {
@@ -134,7 +135,8 @@ impl ProbeModel {
                     }
                 };
                 let mesh = with_regions(plan.build(element)?, &spec.regions)?;
-                System::Plane(plane_system(setup, mesh, formulation)?)
+                let system = System::Plane(plane_system(setup, mesh, formulation)?);
+                (system, whole_bottom)
             }
             PlaneModel::Slab => {
                 if spec.layers == 0 {
@@ -152,12 +154,9 @@ impl ProbeModel {
                     slab.build(element)?
                 };
                 let mesh = with_regions(mesh, &spec.regions)?;
-                System::Slab(slab_system(setup, mesh, half)?)
+                let system = System::Slab(slab_system(setup, mesh, half)?);
+                (system, if half { 0.0 } else { whole_bottom })
             }
-        };
-        let bottom = match &system {
-            System::Slab(s) => s.mesh().nodes().iter().fold(0.0f64, |z, n| z.min(n[2])),
-            System::Plane(_) => -0.5 * setup.thickness,
         };
         let model = Self {
             system,
