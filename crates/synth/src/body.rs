@@ -17,7 +17,7 @@ use needle_fem::mesh::{BoundaryFacet, Mesh, RectangleMesh};
 use crate::error::SynthError;
 use crate::grid::{PLANE_GRADING_LEVELS, grade, grid_lines};
 use crate::scenario::{Scenario, SlabGrading};
-use crate::slab_mesh::{grade_plan, layered_slab, node_planes};
+use crate::slab_mesh::{Span, grade_plan, layered_slab, upper_planes};
 
 /// The meshed phantom.
 pub(crate) struct Body {
@@ -30,6 +30,9 @@ pub(crate) struct Body {
     elements: Vec<usize>,
     /// Slab thickness (m).
     pub thickness: f64,
+    /// Whether the mesh is the upper half of the symmetric slab (solved
+    /// with $u_z = 0$ held on the mid-plane).
+    pub upper_half: bool,
     /// Element size in the plane (m), the largest grid spacing.
     pub element_size: f64,
     assembly: Assembly,
@@ -57,11 +60,12 @@ impl Body {
     /// column, on `x_lines` (needle lines, probe centres and edges) and
     /// `y_lines` (layer boundaries), each interval split to at most marker
     /// spacing / refinement. 3-D when the scenario has `out_of_plane`,
-    /// graded as its `resolution.slab_grading` asks (`slab_mesh`);
-    /// otherwise plane strain, the grid graded towards the probe edges
-    /// `x_edges`, the sides and the front and back faces.
+    /// graded as its `resolution.slab_grading` asks and covering `span`
+    /// of it (`slab_mesh`); otherwise plane strain, the grid graded towards
+    /// the probe edges `x_edges`, the sides and the front and back faces.
     pub fn build(
         scenario: &Scenario,
+        span: Span,
         x_lines: &[f64],
         x_edges: &[f64],
         y_lines: &[f64],
@@ -100,8 +104,8 @@ impl Body {
             y_lines: ys,
         };
         let (dim, npe, nodes, elements, assembly) = if slab {
-            let planes = node_planes(p.thickness, r.layers, &grading);
-            let mut mesh: Mesh<3> = layered_slab(plan, &planes)?;
+            let planes = upper_planes(p.thickness, r.layers, &grading);
+            let mut mesh: Mesh<3> = layered_slab(plan, &planes, span)?;
             mesh.renumber_spatially();
             mesh.assign_regions(|x| region_of(x[1]));
             let nodes = mesh.nodes().to_vec();
@@ -159,6 +163,7 @@ impl Body {
             nodes,
             elements,
             thickness: p.thickness,
+            upper_half: slab && span == Span::UpperHalf,
             element_size,
             assembly,
             locator,
@@ -323,12 +328,23 @@ impl Body {
         v
     }
 
-    /// Adds a point force at a located point to the load vector, spread to
-    /// the element nodes by the shape functions (consistent nodal forces).
+    /// How many copies of the mesh the phantom is: 2 for the upper half of
+    /// the symmetric slab, else 1. A force on a mid-plane point of the
+    /// whole slab falls half on each half, so the mesh carries `1 / copies`
+    /// of every load, and a reaction summed over the mesh is `1 / copies`
+    /// of the whole's.
+    pub fn copies(&self) -> f64 {
+        if self.upper_half { 2.0 } else { 1.0 }
+    }
+
+    /// Adds the mesh's share ([`Body::copies`]) of a point force at a
+    /// located point to the load vector, spread to the element nodes by
+    /// the shape functions (consistent nodal forces).
     pub fn add_point_force(&self, at: &Location, force: [f64; 3], loads: &mut [f64]) {
+        let share = 1.0 / self.copies();
         for (a, &n) in self.element(at.element).iter().enumerate() {
             for c in 0..self.dim {
-                loads[n * self.dim + c] += at.shape[a] * force[c];
+                loads[n * self.dim + c] += share * at.shape[a] * force[c];
             }
         }
     }

@@ -235,6 +235,7 @@ pub fn generate(
             nodes: world.body.nodes.len(),
             elements: world.body.element_count(),
             element_size: world.body.element_size,
+            upper_half: world.body.upper_half,
         },
         stated_noise: stated,
         trials: truths,

@@ -23,7 +23,10 @@
 //! - Without `out_of_plane` the phantom is a plane-strain mesh of 6-node
 //!   triangles; with it, a slab of 10-node tetrahedra with several layers
 //!   through the thickness, markers read on the top face, the needle load
-//!   on the mid-plane.
+//!   on the mid-plane. The slab's mesh is mirrored in its mid-plane, and
+//!   unless the platform's foundation acts under its bottom face it is
+//!   solved as its upper half, which gives the whole's displacement
+//!   exactly (`slab_mesh`).
 //! - A linear truth factorises $K$ once for every day whose moduli are a
 //!   uniform multiple of the day-0 moduli (stiffening over days scales the
 //!   solution by $1/c$), and every state is a back-substitution; probes

@@ -5,7 +5,8 @@
 //! The front-face nodes under the probe have $u_y = \delta$ and are free
 //! along x (and z); the force the probe applies is the sum of the
 //! reactions $r_y = (f_{int}(u))_y$ at those nodes, and its moment about
-//! the probe centre is $\sum (x_n - x_p)\,r_{y,n}$.
+//! the probe centre is $\sum (x_n - x_p)\,r_{y,n}$ (both times
+//! `Body::copies`: doubled on the upper half of the slab).
 //!
 //! The linear truth is exactly proportional to $\delta$, so one solve
 //! gives every frame. It reuses the day's factorisation (supports held
@@ -59,11 +60,16 @@ pub(crate) fn press(world: &World, probe: &ProbeTrial) -> Result<ProbeRun, Synth
         last_displacement: vec![0.0; dofs],
     };
     let mut record = |delta: f64, u: Vec<f64>, reactions: &[f64]| {
-        let force: f64 = contact.iter().map(|&n| reactions[n * body.dim + 1]).sum();
-        let moment: f64 = contact
-            .iter()
-            .map(|&n| (body.nodes[n][0] - probe.x) * reactions[n * body.dim + 1])
-            .sum();
+        let force: f64 = body.copies()
+            * contact
+                .iter()
+                .map(|&n| reactions[n * body.dim + 1])
+                .sum::<f64>();
+        let moment: f64 = body.copies()
+            * contact
+                .iter()
+                .map(|&n| (body.nodes[n][0] - probe.x) * reactions[n * body.dim + 1])
+                .sum::<f64>();
         run.indentations.push(delta);
         run.markers.push(world.marker_displacements(&u));
         run.force.push(force);

@@ -7,6 +7,15 @@
 //! quadratic nodes are added, so every edge stays straight and every
 //! mid-side node sits at its edge's middle.
 //!
+//! The slab, its supports (except the platform's foundation under the
+//! bottom face) and its loads (the needle in the mid-plane, a probe
+//! evenly through the thickness) are symmetric about $z = 0$, and so is
+//! the mesh: its lower half is the mirror image of the upper
+//! (`SlabMesh::build_symmetric`). The displacement is then symmetric too,
+//! and the upper half alone gives it exactly, with $u_z = 0$ held on the
+//! mid-plane and half of every mid-plane load: [`Span::UpperHalf`], about
+//! a quarter of the whole's factorisation cost.
+//!
 //! Why grade: the needle's shaft force is a line load on the mid-plane
 //! (displacement $\sim \ln r$ towards it) that ends at the free front
 //! face, and the clamped back face meets the free sides and top face in
@@ -39,30 +48,57 @@ pub(crate) fn grade_plan(
     grade(xs, needles, target, grading.needle_lines);
 }
 
-/// Heights of the node planes: `layers` equal layers over
-/// $[-t/2, t/2]$, graded towards the mid-plane and the top face.
-pub(crate) fn node_planes(thickness: f64, layers: usize, grading: &SlabGrading) -> Vec<f64> {
+/// How much of the slab the mesh covers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Span {
+    /// The whole thickness, the lower half the mirror image of the upper.
+    Whole,
+    /// The upper half $z \in [0, t/2]$ alone.
+    UpperHalf,
+}
+
+/// Heights of the node planes of the upper half, from the mid-plane
+/// $z = 0$ to the top face: those of `layers` equal layers through the
+/// whole thickness (with the mid-plane added when `layers` is odd, since
+/// the needle's load lies on it), graded towards the mid-plane and the
+/// top face.
+pub(crate) fn upper_planes(thickness: f64, layers: usize, grading: &SlabGrading) -> Vec<f64> {
     let half = 0.5 * thickness;
     let size = thickness / layers as f64;
-    let mut zs: Vec<f64> = (0..=layers).map(|k| -half + size * k as f64).collect();
+    let mut zs = vec![0.0];
+    zs.extend(
+        (0..=layers)
+            .map(|k| -half + size * k as f64)
+            .filter(|&z| z > 1e-9 * half),
+    );
     grade(&mut zs, &[0.0], size, grading.mid_plane);
     grade(&mut zs, &[half], size, grading.top_face);
     zs
 }
 
-/// The Tet10 slab over `plan` whose node planes lie at `z_lines` (sorted,
-/// from the bottom face to the top face).
-pub(crate) fn layered_slab(plan: RectangleMesh, z_lines: &[f64]) -> Result<Mesh<3>, SynthError> {
-    let (bottom, top) = (z_lines[0], z_lines[z_lines.len() - 1]);
-    let layers = z_lines.len() - 1;
-    let uniform = SlabMesh::new(plan, top - bottom, layers)?.build(ElementKind::Tet4)?;
-    // The uniform builder puts node plane k at -t/2 + k t / layers.
+/// The Tet10 slab over `plan` whose upper half has its node planes at
+/// `upper` (ascending from 0): that half alone, or the whole slab with the
+/// lower half its mirror image.
+pub(crate) fn layered_slab(
+    plan: RectangleMesh,
+    upper: &[f64],
+    span: Span,
+) -> Result<Mesh<3>, SynthError> {
+    let layers = upper.len() - 1;
+    let top = upper[layers];
+    let slab = SlabMesh::new(plan, 2.0 * top, 2 * layers)?;
+    let uniform = match span {
+        Span::Whole => slab.build_symmetric(ElementKind::Tet4)?,
+        Span::UpperHalf => slab.build_upper_half(ElementKind::Tet4)?,
+    };
+    // needle-fem puts node plane k at z = k top / layers, k from -layers
+    // (whole) or 0 (half) to layers.
     let nodes = uniform
         .nodes()
         .iter()
         .map(|n| {
-            let k = ((n[2] + 0.5 * (top - bottom)) / (top - bottom) * layers as f64).round();
-            [n[0], n[1], z_lines[k as usize]]
+            let k = (n[2] / top * layers as f64).round();
+            [n[0], n[1], k.signum() * upper[k.abs() as usize]]
         })
         .collect();
     let linear = Mesh::new(
@@ -86,17 +122,20 @@ mod tests {
             mid_plane: 2,
             top_face: 1,
         };
-        let zs = node_planes(8.0, 2, &grading);
-        assert_eq!(zs, [-4.0, -2.0, -1.0, 0.0, 1.0, 2.0, 4.0]);
-        let zs = node_planes(
-            8.0,
-            2,
-            &SlabGrading {
-                top_face: 2,
-                ..grading
-            },
-        );
-        assert_eq!(zs, [-4.0, -2.0, -1.0, 0.0, 1.0, 2.0, 3.0, 4.0]);
+        // Layers of 4 from -4 to 4: the top one split twice towards 0.
+        assert_eq!(upper_planes(8.0, 2, &grading), [0.0, 1.0, 2.0, 4.0]);
+        let top_twice = SlabGrading {
+            top_face: 2,
+            ..grading
+        };
+        assert_eq!(upper_planes(8.0, 2, &top_twice), [0.0, 1.0, 2.0, 3.0, 4.0]);
+        // Three layers have no plane at 0: it is added.
+        let uniform = SlabGrading {
+            mid_plane: 0,
+            top_face: 0,
+            ..grading
+        };
+        assert_eq!(upper_planes(6.0, 3, &uniform), [0.0, 1.0, 3.0]);
     }
 
     #[test]
@@ -107,27 +146,45 @@ mod tests {
             x_lines: vec![0.0, 1.0, 2.0],
             y_lines: vec![0.0, 1.5, 3.0],
         };
-        let zs = [-0.5, -0.1, 0.0, 0.3, 0.5];
-        let mesh = layered_slab(plan, &zs).unwrap();
-        assert_eq!(mesh.kind(), ElementKind::Tet10);
-        // Corner and mid-side heights: the planes and their midpoints.
-        let mut heights: Vec<f64> = zs.to_vec();
-        heights.extend(zs.windows(2).map(|w| 0.5 * (w[0] + w[1])));
-        for n in mesh.nodes() {
-            assert!(heights.iter().any(|&z| (z - n[2]).abs() < 1e-12), "{n:?}");
+        let upper = [0.0, 0.1, 0.4, 0.5];
+        for (span, volume) in [(Span::Whole, 6.0), (Span::UpperHalf, 3.0)] {
+            let mesh = layered_slab(plan.clone(), &upper, span).unwrap();
+            assert_eq!(mesh.kind(), ElementKind::Tet10);
+            // Corner and mid-side heights: the planes, their midpoints and
+            // (whole) their mirror images.
+            let mut heights: Vec<f64> = upper.to_vec();
+            heights.extend(upper.windows(2).map(|w| 0.5 * (w[0] + w[1])));
+            for n in mesh.nodes() {
+                let z = match span {
+                    Span::Whole => n[2].abs(),
+                    Span::UpperHalf => n[2],
+                };
+                assert!(heights.iter().any(|&h| (h - z).abs() < 1e-12), "{n:?}");
+            }
+            // Straight-edged, positively oriented tetrahedra (the neo-Hookean
+            // truth integrates with the signed Jacobian): volumes from the
+            // corners sum to the box.
+            let volumes: Vec<f64> = (0..mesh.element_count())
+                .map(|e| {
+                    let c: Vec<[f64; 3]> =
+                        mesh.element(e)[..4].iter().map(|&n| mesh.node(n)).collect();
+                    let d = |k: usize| [0, 1, 2].map(|i| c[k][i] - c[0][i]);
+                    let (a, b, w) = (d(1), d(2), d(3));
+                    (a[0] * (b[1] * w[2] - b[2] * w[1]) - a[1] * (b[0] * w[2] - b[2] * w[0])
+                        + a[2] * (b[0] * w[1] - b[1] * w[0]))
+                        / 6.0
+                })
+                .collect();
+            assert!(volumes.iter().all(|&v| v > 0.0), "{span:?}");
+            let sum: f64 = volumes.iter().sum();
+            assert!((sum - volume).abs() < 1e-12, "{span:?}: {sum}");
+            if span == Span::Whole {
+                // The lower half mirrors the upper: every node has its image.
+                for n in mesh.nodes() {
+                    let image = [n[0], n[1], -n[2]];
+                    assert!(mesh.nodes().iter().any(|m| m == &image), "{n:?}");
+                }
+            }
         }
-        // Straight-edged tetrahedra: volumes from the corners sum to the box.
-        let volume: f64 = (0..mesh.element_count())
-            .map(|e| {
-                let c: Vec<[f64; 3]> = mesh.element(e)[..4].iter().map(|&n| mesh.node(n)).collect();
-                let d = |k: usize| [0, 1, 2].map(|i| c[k][i] - c[0][i]);
-                let (a, b, w) = (d(1), d(2), d(3));
-                (a[0] * (b[1] * w[2] - b[2] * w[1]) - a[1] * (b[0] * w[2] - b[2] * w[0])
-                    + a[2] * (b[0] * w[1] - b[1] * w[0]))
-                    .abs()
-                    / 6.0
-            })
-            .sum();
-        assert!((volume - 6.0).abs() < 1e-12, "{volume}");
     }
 }

@@ -10,6 +10,7 @@ use crate::needle::{
 };
 use crate::probe::press;
 use crate::scenario::{NeedlePlan, Scenario};
+use crate::slab_mesh::Span;
 use crate::system::{Factorised, Stiffness};
 use crate::world::World;
 use needle_fem::material::Materials;
@@ -46,15 +47,17 @@ fn plan(s: &Scenario) -> NeedlePlan {
     s.needles.plan()[0]
 }
 
-/// Sum of the y components of `r` over the nodes on the back face.
+/// Sum of the y components of `r` over the nodes on the back face, of the
+/// whole phantom.
 fn back_reaction(world: &World, r: &[f64]) -> f64 {
     let depth = world.scenario.phantom.depth;
-    world
-        .body
-        .nodes_where(|x| (x[1] - depth).abs() < 1e-12)
-        .iter()
-        .map(|&n| r[n * world.body.dim + 1])
-        .sum()
+    world.body.copies()
+        * world
+            .body
+            .nodes_where(|x| (x[1] - depth).abs() < 1e-12)
+            .iter()
+            .map(|&n| r[n * world.body.dim + 1])
+            .sum::<f64>()
 }
 
 #[test]
@@ -230,7 +233,7 @@ fn probe_by_lagrange_multipliers_equals_the_held_face_solve() {
         let gap = largest_gap(&run.last_displacement, &expected);
         assert!(gap < 1e-9 * probe.indentation, "gap {gap}");
         let r = k.multiply(&expected);
-        let force: f64 = held.iter().map(|&d| r[d]).sum();
+        let force: f64 = world.body.copies() * held.iter().map(|&d| r[d]).sum::<f64>();
         let got = *run.force.last().unwrap();
         assert!((got - force).abs() < 1e-9 * force, "{got} vs {force}");
     }
@@ -599,4 +602,79 @@ fn needle_states_are_halved_near_the_entry_and_nest_when_the_step_is_halved() {
     for (a, b) in fine.iter().step_by(2).zip(&grid) {
         assert!((a - b).abs() < 1e-15);
     }
+}
+
+/// Largest difference between the marker displacements of two runs, over
+/// every state, and the largest displacement of the second.
+fn marker_gap(a: &[Vec<[f64; 3]>], b: &[Vec<[f64; 3]>]) -> (f64, f64) {
+    assert_eq!(a.len(), b.len());
+    let pairs = a.iter().flatten().zip(b.iter().flatten());
+    let gap = pairs
+        .map(|(p, q)| (0..3).map(|c| (p[c] - q[c]).abs()).fold(0.0, f64::max))
+        .fold(0.0, f64::max);
+    let largest = b
+        .iter()
+        .flatten()
+        .flatten()
+        .fold(0.0f64, |m, v| m.max(v.abs()));
+    (gap, largest)
+}
+
+#[test]
+fn the_slabs_upper_half_answers_as_the_whole_symmetric_slab() {
+    let [_, mut s] = plane_and_slab();
+    // Springs on the back face too: the half carries half their area.
+    s.effects.compliant_support = Some(CompliantSupport {
+        normal: 1e6,
+        tangential: 1e6,
+    });
+    let half = World::covering(&s, Span::UpperHalf).unwrap();
+    let whole = World::covering(&s, Span::Whole).unwrap();
+    assert!(half.body.upper_half && !whole.body.upper_half);
+    // Three node planes of five.
+    let ratio = half.body.dof_count() as f64 / whole.body.dof_count() as f64;
+    assert!(ratio < 0.65, "{ratio}");
+
+    let probe = s.probes[0];
+    let (a, b) = (
+        press(&half, &probe).unwrap(),
+        press(&whole, &probe).unwrap(),
+    );
+    let (gap, largest) = marker_gap(&a.markers, &b.markers);
+    assert!(
+        largest > 1e-5 && gap < 1e-10 * largest,
+        "probe: {gap} of {largest}"
+    );
+    let (fa, fb) = (*a.force.last().unwrap(), *b.force.last().unwrap());
+    assert!(fb > 0.0 && (fa - fb).abs() < 1e-10 * fb, "{fa} vs {fb}");
+    let (ma, mb) = (*a.moment.last().unwrap(), *b.moment.last().unwrap());
+    assert!((ma - mb).abs() < 1e-9 * fb * probe.width, "{ma} vs {mb}");
+
+    let needle = |world: &World| {
+        let response = world.response(0.0).unwrap();
+        insert(
+            world,
+            &[(plan(&s), &response)],
+            s.needles.depth,
+            s.resolution.depth_step,
+        )
+        .unwrap()
+        .remove(0)
+    };
+    let (a, b) = (needle(&half), needle(&whole));
+    let (gap, largest) = marker_gap(&a.markers, &b.markers);
+    // The insertion's placement is iterated until its points move less
+    // than CONSISTENCY_TOLERANCE: the two agree to that, not to round-off.
+    assert!(
+        largest > 1e-5 && gap < 1e-2 * CONSISTENCY_TOLERANCE,
+        "needle: {gap} of {largest}"
+    );
+    for (ea, eb) in a.entry.iter().zip(&b.entry) {
+        assert!(
+            (ea - eb).abs() < CONSISTENCY_TOLERANCE,
+            "entry {ea} vs {eb}"
+        );
+    }
+    let tip = (0..3).map(|c| (a.tip_material[c] - b.tip_material[c]).abs());
+    assert!(tip.fold(0.0, f64::max) < CONSISTENCY_TOLERANCE);
 }

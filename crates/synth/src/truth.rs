@@ -43,6 +43,10 @@ pub struct Discretisation {
     pub elements: usize,
     /// Largest element edge in the plane (m).
     pub element_size: f64,
+    /// Whether the slab was solved as its upper half (nodes and elements
+    /// are the half's); see `slab_mesh`.
+    #[serde(default)]
+    pub upper_half: bool,
 }
 
 /// True values of one trial.

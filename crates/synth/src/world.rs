@@ -16,6 +16,7 @@ use crate::body::{Body, Location};
 use crate::effect::material_nonlinearity::NeoHookean;
 use crate::error::SynthError;
 use crate::scenario::Scenario;
+use crate::slab_mesh::Span;
 use crate::system::{Factorised, Stiffness};
 
 /// The phantom of a scenario, meshed, with everything that does not depend
@@ -41,8 +42,21 @@ pub(crate) struct World<'s> {
 impl<'s> World<'s> {
     /// Meshes the phantom with grid lines on the needle lines, the probe
     /// centres and edges and the layer boundaries (graded towards the
-    /// probe edges in plane strain), and sets up its supports.
+    /// probe edges in plane strain), and sets up its supports. A slab is
+    /// solved as its upper half unless the platform's foundation under its
+    /// bottom face breaks the symmetry.
     pub fn new(scenario: &'s Scenario) -> Result<Self, SynthError> {
+        let span = match scenario.effects.platform_friction {
+            Some(_) => Span::Whole,
+            None => Span::UpperHalf,
+        };
+        Self::covering(scenario, span)
+    }
+
+    /// [`World::new`] with the slab's mesh covering `span` of it (the
+    /// upper half is the whole's solution only for a symmetric scenario:
+    /// without `platform_friction`).
+    pub fn covering(scenario: &'s Scenario, span: Span) -> Result<Self, SynthError> {
         let p = &scenario.phantom;
         let edges: Vec<f64> = scenario
             .probes
@@ -57,7 +71,7 @@ impl<'s> World<'s> {
             .as_ref()
             .map(|l| l.boundaries.clone())
             .unwrap_or_default();
-        let body = Body::build(scenario, &x_lines, &edges, &y_lines, |y| {
+        let body = Body::build(scenario, span, &x_lines, &edges, &y_lines, |y| {
             layers.as_ref().map_or(0, |l| l.layer_of(y))
         })?;
         let tol = 1e-9 * p.depth;
@@ -72,6 +86,13 @@ impl<'s> World<'s> {
                         fixed[n * body.dim + c] = true;
                     }
                 }
+            }
+        }
+        if body.upper_half {
+            // The symmetry plane: u_z = 0 on the mid-plane.
+            let on_mid_plane = |x: [f64; 3]| x[2].abs() < 1e-9 * p.thickness;
+            for n in body.nodes_where(on_mid_plane) {
+                fixed[n * body.dim + 2] = true;
             }
         }
         if let Some(platform) = &scenario.effects.platform_friction {
