@@ -27,8 +27,8 @@ pub(crate) const PLANE_REFINEMENT: usize = 6;
 /// and sides and one towards each needle line. Against the reference mesh
 /// its final markers of a 1 mm/s insertion are 4.7 um away at worst (the
 /// marker beside the needle's entry), 0.6 of the marker noise; two layers
-/// with [`SlabGrading::DEFAULT`] are 18 um away. The campaign costs some
-/// 19 s instead of 8 s (`docs/truth-world.md`, The 3-D slab).
+/// with [`SlabGrading::DEFAULT`] are 18 um away. The campaign costs 19 to
+/// 24 s instead of 8 s (`docs/truth-world.md`, The 3-D slab).
 pub(crate) const PAPER_SLAB_GRADING: SlabGrading = SlabGrading {
     faces: 3,
     needle_lines: 1,

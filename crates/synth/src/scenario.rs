@@ -105,8 +105,9 @@ pub struct SlabGrading {
 }
 
 impl SlabGrading {
-    /// The truth's slab: two levels towards the faces and sides, uniform
-    /// layers (measured in `docs/truth-world.md`, The 3-D slab).
+    /// The grading of a scenario that states none: two levels towards the
+    /// faces and sides, uniform layers (the paper default states a finer
+    /// one; measured in `docs/truth-world.md`, The 3-D slab).
     pub const DEFAULT: Self = Self {
         faces: 2,
         needle_lines: 0,
