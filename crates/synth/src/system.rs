@@ -7,7 +7,9 @@
 //! $r = K u - f$ on the held components.
 
 use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholesky, factorize_symbolic_cholesky};
+use faer::sparse::linalg::cholesky::{
+    LdltRef, LltRef, SymbolicCholesky, factorize_symbolic_cholesky,
+};
 use faer::sparse::{SparseColMat, SymbolicSparseColMat, Triplet};
 use faer::{Conj, Par, Side, get_global_parallelism};
 
@@ -98,12 +100,34 @@ pub(crate) struct Factorised {
     /// about inside enums.
     symbolic: Box<SymbolicCholesky<usize>>,
     values: Vec<f64>,
+    pivots: Pivots,
+}
+
+/// The signs the factorisation's pivots may take.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Pivots {
+    /// Positive: $K_{ff} = L L^T$ (a stiffness; fails if not positive
+    /// definite).
+    Positive,
+    /// Any nonzero sign: $K_{ff} = L D L^T$ without pivoting (a tangent
+    /// that compressive stress made indefinite).
+    AnySign,
 }
 
 impl Factorised {
-    /// Factorises the free block of `stiffness`; `held[dof]` marks the
-    /// components that are fixed or prescribed.
+    /// Factorises the free block of `stiffness` as $L L^T$; `held[dof]`
+    /// marks the components that are fixed or prescribed.
     pub fn new(stiffness: &Stiffness, held: &[bool], what: &str) -> Result<Self, SynthError> {
+        Self::with_pivots(stiffness, held, what, Pivots::Positive)
+    }
+
+    /// [`Factorised::new`] with pivots of the given signs.
+    pub fn with_pivots(
+        stiffness: &Stiffness,
+        held: &[bool],
+        what: &str,
+        pivots: Pivots,
+    ) -> Result<Self, SynthError> {
         let n = stiffness.dof_count();
         let mut reduced = vec![usize::MAX; n];
         let mut free = Vec::new();
@@ -147,26 +171,49 @@ impl Factorised {
         .map_err(|e| failed(format!("{e:?}")))?;
         let mut factor = vec![0.0; symbolic.len_val()];
         let par = get_global_parallelism();
-        let mut scratch = MemBuffer::try_new(
-            symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
-        )
-        .map_err(|e| failed(format!("{e:?}")))?;
-        symbolic
-            .factorize_numeric_llt(
-                &mut factor,
-                matrix.as_ref(),
-                Side::Lower,
-                Default::default(),
-                par,
-                MemStack::new(&mut scratch),
-                Default::default(),
-            )
-            .map_err(|e| failed(format!("{e:?}")))?;
+        let scratch = match pivots {
+            Pivots::Positive => {
+                symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default())
+            }
+            Pivots::AnySign => {
+                symbolic.factorize_numeric_ldlt_scratch::<f64>(par, Default::default())
+            }
+        };
+        let mut scratch = MemBuffer::try_new(scratch).map_err(|e| failed(format!("{e:?}")))?;
+        let stack = MemStack::new(&mut scratch);
+        let (a, side) = (matrix.as_ref(), Side::Lower);
+        match pivots {
+            Pivots::Positive => symbolic
+                .factorize_numeric_llt(
+                    &mut factor,
+                    a,
+                    side,
+                    Default::default(),
+                    par,
+                    stack,
+                    Default::default(),
+                )
+                .map(|_| ())
+                .map_err(|e| failed(format!("{e:?}")))?,
+            Pivots::AnySign => symbolic
+                .factorize_numeric_ldlt(
+                    &mut factor,
+                    a,
+                    side,
+                    Default::default(),
+                    par,
+                    stack,
+                    Default::default(),
+                )
+                .map(|_| ())
+                .map_err(|e| failed(format!("{e:?}")))?,
+        }
         Ok(Self {
             reduced,
             free,
             symbolic: Box::new(symbolic),
             values: factor,
+            pivots,
         })
     }
 
@@ -184,12 +231,21 @@ impl Factorised {
             self.symbolic
                 .solve_in_place_scratch::<f64>(loads.len(), Par::Seq),
         );
-        LltRef::new(&self.symbolic, &self.values).solve_in_place_with_conj(
-            Conj::No,
-            rhs.as_mut(),
-            Par::Seq,
-            MemStack::new(&mut scratch),
-        );
+        let stack = MemStack::new(&mut scratch);
+        match self.pivots {
+            Pivots::Positive => LltRef::new(&self.symbolic, &self.values).solve_in_place_with_conj(
+                Conj::No,
+                rhs.as_mut(),
+                Par::Seq,
+                stack,
+            ),
+            Pivots::AnySign => LdltRef::new(&self.symbolic, &self.values).solve_in_place_with_conj(
+                Conj::No,
+                rhs.as_mut(),
+                Par::Seq,
+                stack,
+            ),
+        }
         loads
             .iter()
             .enumerate()

@@ -678,3 +678,23 @@ fn the_slabs_upper_half_answers_as_the_whole_symmetric_slab() {
     let tip = (0..3).map(|c| (a.tip_material[c] - b.tip_material[c]).abs());
     assert!(tip.fold(0.0, f64::max) < CONSISTENCY_TOLERANCE);
 }
+
+#[test]
+fn the_neo_hookean_slabs_upper_half_answers_as_the_whole() {
+    let [_, mut s] = plane_and_slab();
+    s.effects.material_nonlinearity = Some(crate::effect::MaterialNonlinearity);
+    // One Newton solve of a millimetre's indentation; the whole mirrored
+    // slab's tangent is indefinite there (an antisymmetric mode), which
+    // the half's symmetry plane removes.
+    s.resolution.indentation_step = 0.001;
+    let probe = crate::scenario::ProbeTrial {
+        indentation: 0.001,
+        ..s.probes[0]
+    };
+    let run = |span| press(&World::covering(&s, span).unwrap(), &probe).unwrap();
+    let (a, b) = (run(Span::UpperHalf), run(Span::Whole));
+    let (gap, largest) = marker_gap(&a.markers, &b.markers);
+    assert!(largest > 1e-5 && gap < 1e-9 * largest, "{gap} of {largest}");
+    let (fa, fb) = (*a.force.last().unwrap(), *b.force.last().unwrap());
+    assert!((fa - fb).abs() < 1e-9 * fb, "{fa} vs {fb}");
+}

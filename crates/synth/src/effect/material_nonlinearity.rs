@@ -29,7 +29,7 @@ use super::{EffectId, TruthEffect};
 use crate::body::Body;
 use crate::error::SynthError;
 use crate::scenario::{FieldChecker, Scenario};
-use crate::system::{Factorised, Stiffness};
+use crate::system::{Factorised, Pivots, Stiffness};
 
 /// Neo-Hookean truth material (same small-strain constants as the phantom).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -234,12 +234,18 @@ impl NeoHookean {
         }
     }
 
-    /// The tangent at `u` and its factorised free block; where the tangent
-    /// is not positive definite (large compression with a coarse mesh), the
-    /// stiffness at rest instead: slower to converge, but always defined.
+    /// The tangent at `u` and its factorised free block. Compressive stress
+    /// can make the tangent indefinite (large compression with a coarse
+    /// mesh; an antisymmetric mode of the whole mirrored slab under a
+    /// probe): then it is factorised as $L D L^T$, and only if that fails
+    /// too the stiffness at rest is used instead, slower to converge but
+    /// always defined.
     fn factorise_at(&self, body: &Body, u: &[f64]) -> Result<(Stiffness, Factorised), SynthError> {
         let tangent = self.tangent_at(body, u)?;
-        match Factorised::new(&tangent, &self.held, "the neo-Hookean tangent") {
+        let what = "the neo-Hookean tangent";
+        let factorised = Factorised::new(&tangent, &self.held, what)
+            .or_else(|_| Factorised::with_pivots(&tangent, &self.held, what, Pivots::AnySign));
+        match factorised {
             Ok(f) => Ok((tangent, f)),
             Err(_) => {
                 let rest = self.tangent_at(body, &vec![0.0; u.len()])?;
