@@ -182,7 +182,9 @@ impl Factorised {
         let mut scratch = MemBuffer::try_new(scratch).map_err(|e| failed(format!("{e:?}")))?;
         let stack = MemStack::new(&mut scratch);
         let (a, side) = (matrix.as_ref(), Side::Lower);
-        match pivots {
+        // The same arguments for either factorisation: only the pivots'
+        // sign rule differs.
+        let outcome = match pivots {
             Pivots::Positive => symbolic
                 .factorize_numeric_llt(
                     &mut factor,
@@ -194,7 +196,7 @@ impl Factorised {
                     Default::default(),
                 )
                 .map(|_| ())
-                .map_err(|e| failed(format!("{e:?}")))?,
+                .map_err(|e| format!("{e:?}")),
             Pivots::AnySign => symbolic
                 .factorize_numeric_ldlt(
                     &mut factor,
@@ -206,8 +208,9 @@ impl Factorised {
                     Default::default(),
                 )
                 .map(|_| ())
-                .map_err(|e| failed(format!("{e:?}")))?,
-        }
+                .map_err(|e| format!("{e:?}")),
+        };
+        outcome.map_err(failed)?;
         Ok(Self {
             reduced,
             free,
