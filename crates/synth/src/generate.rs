@@ -89,7 +89,26 @@ pub fn generate(
         ));
     }
     progress(Stage::Mesh);
-    let world = World::new(scenario)?;
+    // Frames and calibration images are rendered here first; the bundle
+    // writer copies them.
+    let staging = match &scenario.frames {
+        Some(_) => Some(Staging::beside(bundle_out)?),
+        None => None,
+    };
+    let camera = TrueCamera::new(scenario);
+    // The calibration images need no mechanics: they are rendered on the
+    // second core while the phantom is meshed, assembled and factorised.
+    let (world, calibration) = rayon::join(
+        || World::new(scenario),
+        || match (&scenario.frames, &staging) {
+            (Some(frames), Some(staging)) => {
+                let dir = staging.path().join(needle_data::layout::CALIBRATION);
+                write_calibration(scenario, frames, &camera, &dir).map(|truth| Some((truth, dir)))
+            }
+            _ => Ok(None),
+        },
+    );
+    let (world, calibration) = (world?, calibration?);
     let probes = run_probes(&world, &progress)?;
     let probe_days: Vec<f64> = probes.iter().map(|r| r.probe.day).collect();
     let needle_days: Vec<f64> = needle_plans(scenario).iter().map(|p| p.day).collect();
@@ -153,13 +172,6 @@ pub fn generate(
             .collect();
         builder.compression(curve);
     }
-    // Frames and calibration images are rendered here first; the bundle
-    // writer copies them.
-    let staging = match &scenario.frames {
-        Some(_) => Some(Staging::beside(bundle_out)?),
-        None => None,
-    };
-    let camera = TrueCamera::new(scenario);
     let recorder = Recorder {
         world: &world,
         camera: &camera,
@@ -175,29 +187,21 @@ pub fn generate(
             .map(|(rank, (stream, o))| (stream, o.1, rank))
             .collect()
     };
-    // The calibration images and the probe trials (their frames above all)
-    // are recorded on the second core while the needles are solved.
-    let (needles, early) = rayon::join(
+    // The probe trials (their frames above all) are recorded on the second
+    // core while the needles are solved.
+    let (needles, probe_trials) = rayon::join(
         || run_needles(&world, &progress),
-        || -> Result<_, SynthError> {
-            let calibration = match (&scenario.frames, &staging) {
-                (Some(frames), Some(staging)) => {
-                    let dir = staging.path().join(needle_data::layout::CALIBRATION);
-                    Some((write_calibration(scenario, frames, &camera, &dir)?, dir))
-                }
-                _ => None,
-            };
-            let trials = jobs(TrialKind::Probe)
+        || {
+            jobs(TrialKind::Probe)
                 .par_iter()
                 .map(|&(stream, i, rank)| {
                     recorder.record(stream, rank, Source::Probe(&probes[i], i))
                 })
-                .collect::<Result<Vec<_>, _>>()?;
-            Ok((calibration, trials))
+                .collect::<Result<Vec<_>, _>>()
         },
     );
     let (needles, needle_solves) = needles?;
-    let (calibration, probe_trials) = early?;
+    let probe_trials = probe_trials?;
     progress(Stage::Write);
     let needle_trials = jobs(TrialKind::Needle)
         .par_iter()

@@ -19,12 +19,14 @@
 //! The columns are made as the loads ask for them: first those of the nodes
 //! on the line, then, when a load reaches a node beside it, those of that
 //! whole side of the line (the loaded points stay on one side for long
-//! stretches), each set as one block of right-hand sides, which streams
-//! the factor once for up to [`COLUMN_BLOCK`] of them. A default-campaign
-//! insertion needs 87 columns (120 to 133 on the three lines nearest the
-//! slab's sides, whose points near the entry move up to a millimetre
-//! sideways), against some 215 back-substitutions of the whole load (4.3
-//! per state) when every iteration solved.
+//! stretches), and when it reaches a node further out, those of that
+//! node's whole line parallel to the needle; each set as one block of
+//! right-hand sides, which streams the factor once for up to
+//! [`COLUMN_BLOCK`] of them. The paper default's ten insertions make 1,642
+//! columns (164 each on average; near the entry of the lines nearest the
+//! slab's sides the points move a few millimetres sideways), against some
+//! 215 back-substitutions of the whole load per insertion (4.3 per state)
+//! when every iteration solved.
 //!
 //! The rows kept are those of the band of elements on the loaded plane
 //! within a margin of the line. Whether a state stayed inside it is
@@ -165,21 +167,38 @@ impl LineResponse {
 
     /// Adds the columns a load found `missing`. The loaded points lie on
     /// one side of the line, or both, for long stretches: a missing dof of
-    /// an element touching the line brings the whole side's, in one block;
-    /// other dofs (points pushed further sideways) come alone.
+    /// an element touching the line brings the whole side's, in one block.
+    /// Points pushed further sideways (near the entry, on lines near the
+    /// slab's sides) reach the next node lines parallel to the needle one
+    /// depth after another as the tip advances: a missing dof there brings
+    /// its whole node line. A back-substitution streams the factor once
+    /// whatever its width, so a block of one column costs about as much as
+    /// one of ten (on the paper default, one thread: 72 ms for one column,
+    /// 140 ms for ten, 450 ms for 64), and the columns of a node line are
+    /// cheaper together than as the few each state asks for.
     pub fn add_columns(
         &mut self,
         world: &World,
         response: &Response,
         missing: &[usize],
     ) -> Result<(), SynthError> {
-        let dim = world.body.dim;
+        let body = &world.body;
+        let dim = body.dim;
+        let same_line = 1e-3 * body.element_size;
         let mut wanted = vec![false; self.column_of.len()];
         for &d in missing {
             wanted[d] = true;
-            if let Some(side) = self.side[d / dim] {
-                for (n, s) in self.side.iter().enumerate() {
-                    wanted[n * dim + 1] |= *s == Some(side);
+            match self.side[d / dim] {
+                Some(side) => {
+                    for (n, s) in self.side.iter().enumerate() {
+                        wanted[n * dim + 1] |= *s == Some(side);
+                    }
+                }
+                None => {
+                    let x = body.nodes[d / dim][0];
+                    for (n, node) in body.nodes.iter().enumerate() {
+                        wanted[n * dim + 1] |= (node[0] - x).abs() <= same_line;
+                    }
                 }
             }
         }
