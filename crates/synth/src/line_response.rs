@@ -29,11 +29,12 @@
 //! when every iteration solved.
 //!
 //! The rows kept are those of the band of elements on the loaded plane
-//! within a margin of the line. Whether a state stayed inside it is
-//! checked, never assumed: a load that reaches a dof outside the band
-//! (beyond round-off) or a material point that ends up in an element
-//! outside it makes the caller fall back to a full back-substitution
-//! (`needle.rs`).
+//! (for a needle of some radius, also those its rim reaches above it,
+//! where the drag is read) within a margin of the line. Whether a state
+//! stayed inside it is checked, never assumed: a load that reaches a dof
+//! outside the band (beyond round-off) or a reading of the displacement
+//! in an element outside it makes the caller fall back to a full
+//! back-substitution (`needle.rs`).
 
 use crate::error::SynthError;
 use crate::world::{Response, World};
@@ -102,6 +103,13 @@ impl LineResponse {
         let dofs = body.dof_count();
         let tolerance = 1e-9 * body.thickness;
         let touching = 1e-3 * body.element_size;
+        // A needle of some radius reads its drag in the elements its rim
+        // reaches above the mid-plane too (`needle.rs`, `Rim`).
+        let radius = if dim == 3 {
+            world.scenario.needles.radius
+        } else {
+            0.0
+        };
         let mut band = vec![false; body.element_count()];
         let mut in_rows = vec![false; body.nodes.len()];
         let mut first = vec![false; body.nodes.len()];
@@ -115,7 +123,7 @@ impl LineResponse {
                 }
             }
             let near = |m: f64| lo[0] <= line + m && hi[0] >= line - m && lo[1] <= depth + m;
-            let on_plane = dim == 2 || (lo[2] <= tolerance && hi[2] >= -tolerance);
+            let on_plane = dim == 2 || (lo[2] <= radius + tolerance && hi[2] >= -tolerance);
             *inside = on_plane && near(margin);
             if *inside {
                 nodes.iter().for_each(|&n| in_rows[n] = true);
@@ -195,9 +203,10 @@ impl LineResponse {
                     }
                 }
                 None => {
-                    let x = body.nodes[d / dim][0];
+                    let at = body.nodes[d / dim];
                     for (n, node) in body.nodes.iter().enumerate() {
-                        wanted[n * dim + 1] |= (node[0] - x).abs() <= same_line;
+                        wanted[n * dim + 1] |= (node[0] - at[0]).abs() <= same_line
+                            && (node[2] - at[2]).abs() <= same_line;
                     }
                 }
             }

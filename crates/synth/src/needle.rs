@@ -26,6 +26,20 @@
 //! those dofs (`line_response.rs`) give the field there and at the markers
 //! exactly; a full solve is made only for the whole field of the last
 //! state, or when a state leaves the band of kept rows.
+//!
+//! A needle of radius $a > 0$ (`Needles::radius`, 3-D slab only) drags
+//! the tissue on its surface, not on its axis: $u(X)$ above is the mean
+//! displacement over the [`Rim`], points at angles
+//! $\theta_k = (k + \tfrac12)\pi/n$ on the half circle of radius $a$
+//! around the axis in the upper half's x-z plane (the lower half mirrors
+//! them). The load stays on the axis: outside the needle an axial load
+//! on its axis and the same load on its surface give the same shear,
+//! $\tau = q/(2\pi r)$ for $r \ge a$, so they differ only inside the
+//! needle, where there is no tissue. In 3-D a line load's displacement
+//! grows as $\ln r$ towards the line, so a drag read on the axis, and the
+//! markers near the needle, change with every refinement towards it, and
+//! refined far enough the consistency iteration fails; read at $r = a$
+//! they converge (`docs/truth-world.md`, The 3-D slab).
 
 use rayon::prelude::*;
 
@@ -135,6 +149,7 @@ impl Solver<'_> {
     fn solve_and_place(
         &mut self,
         world: &World,
+        rim: &Rim,
         run: &NeedleRun,
         tip: f64,
         placed: &Placement,
@@ -151,7 +166,7 @@ impl Solver<'_> {
                 answer = line.solve(&f);
             }
             if let Ok((u, markers)) = answer {
-                let next = place(body, run, tip, &u, shaft_step);
+                let next = place(body, rim, run, tip, &u, shaft_step);
                 if next.elements().all(|e| line.covers(e)) {
                     return Ok((Solved { u, markers }, next));
                 }
@@ -163,7 +178,7 @@ impl Solver<'_> {
             .solve(body, &[f], &[start.to_vec()])?
             .pop()
             .expect("one load gives one solution");
-        let next = place(body, run, tip, &u, shaft_step);
+        let next = place(body, rim, run, tip, &u, shaft_step);
         let markers = world.marker_displacements(&u);
         Ok((Solved { u, markers }, next))
     }
@@ -231,6 +246,7 @@ fn insert_one(
     step: f64,
 ) -> Result<NeedleRun, SynthError> {
     let body = &world.body;
+    let rim = Rim::new(body, world.scenario.needles.radius);
     let dofs = body.dof_count();
     let depths = depth_grid(depth, step);
     let shaft_step = world.scenario.resolution.shaft_step;
@@ -260,7 +276,7 @@ fn insert_one(
             [.., b] => b.clone(),
             [] => vec![0.0; dofs],
         };
-        let mut placed = place(body, &run, tip, &guess, shaft_step);
+        let mut placed = place(body, &rim, &run, tip, &guess, shaft_step);
         let mut mixing = Mixing::default();
         let mut largest_move = f64::INFINITY;
         let mut iteration = 0;
@@ -275,6 +291,7 @@ fn insert_one(
             iteration += 1;
             let (solved, next) = solver.solve_and_place(
                 world,
+                &rim,
                 &run,
                 tip,
                 &placed,
@@ -289,7 +306,7 @@ fn insert_one(
                 break solved;
             }
             guess = mixing.next(std::mem::take(&mut guess), solved.u);
-            placed = place(body, &run, tip, &guess, shaft_step);
+            placed = place(body, &rim, &run, tip, &guess, shaft_step);
         };
         run.depths.push(tip);
         run.markers.push(solved.markers);
@@ -308,7 +325,7 @@ fn insert_one(
                 }
                 Solver::Full(_) => solved.u.clone(),
             };
-            run.tip_material = material_point(body, [plan.line, tip, 0.0], &u);
+            run.tip_material = material_point(body, &rim, [plan.line, tip, 0.0], &u);
             run.last_displacement = u;
         }
         if previous.len() == 2 {
@@ -372,9 +389,10 @@ impl Mixing {
 /// The loaded material points of one state for one displacement field.
 struct Placement {
     entry: f64,
-    /// Element holding the entry's material point.
-    entry_element: usize,
     points: Vec<([f64; 3], f64, Location)>,
+    /// Every element the displacement was read in: the loaded points' and
+    /// the entry's rims.
+    read: Vec<usize>,
 }
 
 impl Placement {
@@ -390,9 +408,9 @@ impl Placement {
         f
     }
 
-    /// Every element the placement read the displacement on.
+    /// Every element the placement read the displacement in.
     fn elements(&self) -> impl Iterator<Item = usize> + '_ {
-        std::iter::once(self.entry_element).chain(self.points.iter().map(|p| p.2.element))
+        self.read.iter().copied()
     }
 
     /// Largest move of a material point (or of the entry) between two
@@ -408,13 +426,20 @@ impl Placement {
 
 /// Where the shaft load of `run` acts at tip depth `tip` if the phantom
 /// is displaced by `u`.
-fn place(body: &Body, run: &NeedleRun, tip: f64, u: &[f64], shaft_step: f64) -> Placement {
+fn place(
+    body: &Body,
+    rim: &Rim,
+    run: &NeedleRun,
+    tip: f64,
+    u: &[f64],
+    shaft_step: f64,
+) -> Placement {
     let line = run.plan.line;
     let mut x_entry = [line, 0.0, 0.0];
     for _ in 0..50 {
         clamp_inside(body, &mut x_entry);
-        let (d, gradient) = body
-            .value_and_gradient(x_entry, u)
+        let (d, gradient) = rim
+            .value_and_gradient(body, x_entry, u)
             .expect("the entry lies on the front face");
         let step = (x_entry[0] + d[0] - line) / (1.0 + gradient[0][0]);
         x_entry[0] -= step;
@@ -423,27 +448,29 @@ fn place(body: &Body, run: &NeedleRun, tip: f64, u: &[f64], shaft_step: f64) -> 
         }
     }
     clamp_inside(body, &mut x_entry);
-    let at = body
-        .locate(x_entry)
-        .expect("points are clamped into the body");
-    let entry = body.value(&at, u)[1];
+    let entry = rim
+        .value_and_gradient(body, x_entry, u)
+        .expect("points are clamped into the body")
+        .0[1];
     let segments = (tip / shaft_step).ceil().max(1.0) as usize;
+    let mut read = rim.elements(body, x_entry);
     let points = run
         .load
         .points(entry, tip, segments)
         .into_iter()
         .map(|p| {
-            let x = material_point(body, [line, p.y, 0.0], u);
+            let x = material_point(body, rim, [line, p.y, 0.0], u);
             let located = body
                 .locate(x)
                 .expect("material points are kept inside the body");
+            read.extend(rim.elements(body, x));
             (x, p.force, located)
         })
         .collect();
     Placement {
         entry,
-        entry_element: at.element,
         points,
+        read,
     }
 }
 
@@ -454,12 +481,12 @@ fn place(body: &Body, run: &NeedleRun, tip: f64, u: &[f64], shaft_step: f64) -> 
 /// needle's material line stays in the mid-plane by the slab's symmetry
 /// (the mesh's small asymmetry would otherwise make z hop between the
 /// elements above and below the loaded plane).
-fn material_point(body: &Body, p: [f64; 3], u: &[f64]) -> [f64; 3] {
+fn material_point(body: &Body, rim: &Rim, p: [f64; 3], u: &[f64]) -> [f64; 3] {
     let mut x = p;
     for _ in 0..50 {
         clamp_inside(body, &mut x);
-        let (d, mut jacobian) = body
-            .value_and_gradient(x, u)
+        let (d, mut jacobian) = rim
+            .value_and_gradient(body, x, u)
             .expect("points are clamped into the body");
         let r = [x[0] + d[0] - p[0], x[1] + d[1] - p[1], 0.0];
         jacobian[2] = [0.0; 3];
@@ -480,6 +507,85 @@ fn material_point(body: &Body, p: [f64; 3], u: &[f64]) -> [f64; 3] {
     }
     clamp_inside(body, &mut x);
     x
+}
+
+/// Points on the needle's surface per reading of the drag.
+const RIM_POINTS: usize = 6;
+
+/// Where on a needle of some radius around a point of its axis the drag
+/// is read: offsets from the axis point, evenly weighted. A needle of
+/// radius 0 (or any needle in the plane-strain truth) is its axis alone.
+pub(crate) struct Rim {
+    offsets: Vec<[f64; 3]>,
+}
+
+impl Rim {
+    pub fn new(body: &Body, radius: f64) -> Self {
+        if radius == 0.0 || body.dim == 2 {
+            return Self {
+                offsets: vec![[0.0; 3]],
+            };
+        }
+        // In the upper half the half circle above the mid-plane stands for
+        // the whole (u_x and u_y are even in z); in the whole mirrored slab
+        // (a foundation under it) both halves are listed.
+        let n = RIM_POINTS;
+        let halves: &[f64] = if body.upper_half {
+            &[1.0]
+        } else {
+            &[1.0, -1.0]
+        };
+        let offsets = halves
+            .iter()
+            .flat_map(|&side| {
+                (0..n).map(move |k| {
+                    let t = (k as f64 + 0.5) * std::f64::consts::PI / n as f64;
+                    [radius * t.cos(), 0.0, side * radius * t.sin()]
+                })
+            })
+            .collect();
+        Self { offsets }
+    }
+
+    fn points(&self, body: &Body, axis: [f64; 3]) -> impl Iterator<Item = [f64; 3]> + '_ {
+        let (lo, hi) = body.bounds();
+        self.offsets
+            .iter()
+            .map(move |o| std::array::from_fn(|c| (axis[c] + o[c]).clamp(lo[c], hi[c])))
+    }
+
+    /// The mean displacement over the rim around `axis` and its gradient.
+    fn value_and_gradient(
+        &self,
+        body: &Body,
+        axis: [f64; 3],
+        u: &[f64],
+    ) -> Option<([f64; 3], [[f64; 3]; 3])> {
+        let weight = 1.0 / self.offsets.len() as f64;
+        let mut value = [0.0; 3];
+        let mut gradient = [[0.0; 3]; 3];
+        for point in self.points(body, axis) {
+            let (v, g) = body.value_and_gradient(point, u)?;
+            for i in 0..3 {
+                value[i] += weight * v[i];
+                for j in 0..3 {
+                    gradient[i][j] += weight * g[i][j];
+                }
+            }
+        }
+        Some((value, gradient))
+    }
+
+    /// The elements the rim around `axis` is read in.
+    fn elements(&self, body: &Body, axis: [f64; 3]) -> Vec<usize> {
+        self.points(body, axis)
+            .map(|p| {
+                body.locate(p)
+                    .expect("rim points are clamped into the body")
+                    .element
+            })
+            .collect()
+    }
 }
 
 /// Moves a point onto the body if it lies (by rounding) just outside.

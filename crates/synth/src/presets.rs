@@ -112,6 +112,7 @@ impl Scenario {
                 depth: 0.05,
                 first_line: 0.012,
                 line_spacing: 0.0055,
+                radius: 0.0,
             },
             effects: Effects {
                 out_of_plane: Some(OutOfPlane),
@@ -147,6 +148,7 @@ impl Scenario {
             depth: 0.02,
             first_line: 0.02,
             line_spacing: 0.02,
+            radius: 0.0,
         };
         s.frames = Some(CameraFrames::paper(1, 18, 0, 1));
         s.resolution = test_sized_slab(s.resolution);

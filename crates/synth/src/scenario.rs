@@ -192,6 +192,14 @@ pub struct Needles {
     pub first_line: f64,
     /// Distance between consecutive insertion lines (m).
     pub line_spacing: f64,
+    /// Radius of the needle (m), 0 for a line. In the 3-D slab a needle
+    /// of radius $a$ carries its shaft load on its surface and drags the
+    /// tissue it touches there (`needle.rs`): a line load's field is
+    /// singular at the line, so its placement and the markers near it
+    /// change with every refinement towards it, where a radius gives a
+    /// limit. The plane-strain truth ignores it.
+    #[serde(default)]
+    pub radius: f64,
 }
 
 /// One needle trial as the campaign runs it.
@@ -383,6 +391,17 @@ impl Scenario {
         }
         c.within(n.depth, 0.0, p.depth, "needles.depth")?;
         c.positive(n.line_spacing, "needles.line_spacing")?;
+        // The rim must stay inside the slab, clear of its faces.
+        c.check(
+            n.radius.is_finite() && n.radius >= 0.0 && n.radius < 0.25 * p.thickness,
+            "needles.radius",
+            || {
+                format!(
+                    "must be non-negative and below a quarter of the thickness {}, got {}",
+                    p.thickness, n.radius
+                )
+            },
+        )?;
         if let Some(last) = n.plan().last() {
             c.check(
                 n.first_line > 0.0 && last.line < p.width,

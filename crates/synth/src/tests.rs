@@ -583,6 +583,69 @@ fn insertion_from_kept_columns_equals_full_solves_with_and_without_fallback() {
     }
 }
 
+/// The small 3-D slab with a needle of `radius`.
+fn slab_needle(radius: f64) -> Scenario {
+    let mut s = plane_and_slab()[1].clone();
+    s.needles.radius = radius;
+    s
+}
+
+/// A needle radius a fifth of the small slab's thickness (1.5 mm).
+fn thick_needle() -> f64 {
+    0.2 * plane_and_slab()[1].phantom.thickness
+}
+
+#[test]
+fn a_needle_of_some_radius_from_kept_columns_equals_full_solves() {
+    let s = slab_needle(thick_needle());
+    let world = World::new(&s).unwrap();
+    let response = world.response(0.0).unwrap();
+    let trials = [(plan(&s), &response)];
+    let (depth, step) = (s.needles.depth, s.resolution.depth_step);
+    let full = &insert_with(&world, &trials, depth, step, None).unwrap()[0];
+    let columns = &insert(&world, &trials, depth, step).unwrap()[0];
+    let (markers, force) = run_gap(columns, full);
+    assert!(
+        markers < CONSISTENCY_TOLERANCE,
+        "markers off by {markers} m"
+    );
+    assert!(
+        force < 2.0 * columns.load.density * CONSISTENCY_TOLERANCE,
+        "force off by {force} N"
+    );
+}
+
+#[test]
+fn a_needles_radius_drags_the_tissue_less_than_its_axis_and_shrinks_to_it() {
+    let run = |radius: f64| {
+        let s = slab_needle(radius);
+        let world = World::new(&s).unwrap();
+        let response = world.response(0.0).unwrap();
+        let trials = [(plan(&s), &response)];
+        insert(&world, &trials, s.needles.depth, s.resolution.depth_step)
+            .unwrap()
+            .remove(0)
+    };
+    let axis = run(0.0);
+    let thin = run(1e-9);
+    let thick = run(thick_needle());
+    // The drag is read on the needle's surface, where the displacement
+    // has fallen off from its peak at the loaded axis: the entry and the
+    // loaded points are dragged in less.
+    for (k, (a, t)) in axis.entry.iter().zip(&thick.entry).enumerate().skip(1) {
+        assert!(
+            t < a,
+            "state {k}: entry {t} m with the radius, {a} m on the axis"
+        );
+    }
+    // A vanishing radius reads the axis.
+    let (markers, _) = run_gap(&thin, &axis);
+    assert!(
+        markers < CONSISTENCY_TOLERANCE,
+        "markers off by {markers} m"
+    );
+}
+
 #[test]
 fn needle_states_are_halved_near_the_entry_and_nest_when_the_step_is_halved() {
     let grid = depth_grid(0.05, 0.001);

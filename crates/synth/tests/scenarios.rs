@@ -141,6 +141,15 @@ fn out_of_range_value_names_the_dotted_field() {
         matches!(e, SynthError::InvalidField { ref field, .. } if field == "needles.first_line"),
         "{e}"
     );
+    for radius in [-1e-4, 0.25 * 0.0075, f64::NAN] {
+        let mut s = Scenario::paper_default();
+        s.needles.radius = radius;
+        let e = s.validate("memory").unwrap_err();
+        assert!(
+            matches!(e, SynthError::InvalidField { ref field, .. } if field == "needles.radius"),
+            "{e}"
+        );
+    }
     let mut s = Scenario::effect_alone(EffectId::LayeredStiffness);
     s.effects.layered_stiffness.as_mut().unwrap().moduli.pop();
     let e = s.validate("memory").unwrap_err();
