@@ -193,11 +193,12 @@ pub struct Needles {
     /// Distance between consecutive insertion lines (m).
     pub line_spacing: f64,
     /// Radius of the needle (m), 0 for a line. In the 3-D slab a needle
-    /// of radius $a$ carries its shaft load on its surface and drags the
-    /// tissue it touches there (`needle.rs`): a line load's field is
-    /// singular at the line, so its placement and the markers near it
-    /// change with every refinement towards it, where a radius gives a
-    /// limit. The plane-strain truth ignores it.
+    /// of radius $a$ drags the tissue on its surface: the displacement
+    /// that places its load is read there, not on its axis (`needle.rs`).
+    /// A line load's field is singular at the line, so a drag read on the
+    /// axis, and the markers near it, change with every refinement
+    /// towards it, where a radius gives a limit. The plane-strain truth
+    /// ignores it.
     #[serde(default)]
     pub radius: f64,
 }
