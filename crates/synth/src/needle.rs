@@ -453,7 +453,7 @@ fn place(
         .expect("points are clamped into the body")
         .0[1];
     let segments = (tip / shaft_step).ceil().max(1.0) as usize;
-    let mut read = rim.elements(body, x_entry);
+    let mut read = rim.elements(body, x_entry, None);
     let points = run
         .load
         .points(entry, tip, segments)
@@ -463,7 +463,7 @@ fn place(
             let located = body
                 .locate(x)
                 .expect("material points are kept inside the body");
-            read.extend(rim.elements(body, x));
+            read.extend(rim.elements(body, x, Some(&located)));
             (x, p.force, located)
         })
         .collect();
@@ -576,8 +576,12 @@ impl Rim {
         Some((value, gradient))
     }
 
-    /// The elements the rim around `axis` is read in.
-    fn elements(&self, body: &Body, axis: [f64; 3]) -> Vec<usize> {
+    /// The elements the rim around `axis` is read in; a needle without
+    /// radius reads its axis, whose location the caller may have already.
+    fn elements(&self, body: &Body, axis: [f64; 3], located: Option<&Location>) -> Vec<usize> {
+        if let (Some(at), [[0.0, 0.0, 0.0]]) = (located, self.offsets.as_slice()) {
+            return vec![at.element];
+        }
         self.points(body, axis)
             .map(|p| {
                 body.locate(p)
