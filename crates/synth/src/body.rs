@@ -138,18 +138,7 @@ impl Body {
             Assembly::Plane(a) => a.mesh().boundary_facets(),
             Assembly::Slab(a) => a.mesh().boundary_facets(),
         };
-        // Buckets of half the element size hold the elements of at most
-        // about two by two element columns: fewer candidates per search
-        // than buckets of a whole element, which straddle up to three.
-        let locator = Locator::new(
-            &nodes,
-            &elements,
-            npe,
-            dim,
-            element_size / 2.0,
-            p.width,
-            p.depth,
-        );
+        let locator = Locator::new(&nodes, &elements, npe, dim);
         let mut bounds = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
         for n in &nodes {
             for c in 0..3 {
@@ -350,53 +339,81 @@ impl Body {
     }
 }
 
-/// Bucket grid over the (x, y) plan for point location; every element is
-/// listed in each bucket its bounding box touches.
+/// Point location on the grid the mesh was built on. Every slab and
+/// plane mesh of the truth subdivides the cells of a tensor grid (the
+/// plan's lines, and the node planes through the thickness), and the
+/// lines are the distinct coordinates of the element corners; each cell
+/// lists the elements whose bounding box overlaps it, so a search tries
+/// the handful of simplices of one cell (two on its faces). A grid of
+/// equal buckets was slower: where the plan is graded towards a face or a
+/// needle line a bucket held dozens of element columns through the whole
+/// thickness, and the drag of a needle with a radius is located at every
+/// point of its rim.
 struct Locator {
-    cell: f64,
-    nx: usize,
-    ny: usize,
-    buckets: Vec<Vec<usize>>,
+    /// Cell boundaries per axis, strictly increasing (one infinite cell
+    /// along z in 2-D).
+    lines: [Vec<f64>; 3],
+    /// Elements per cell, x fastest.
+    cells: Vec<Vec<usize>>,
     /// Per element: first corner and the inverse of the corner Jacobian,
     /// `xi = inverse * (p - origin)`.
     maps: Vec<([f64; 3], [[f64; 3]; 3])>,
+    /// Relative tolerance in reference coordinates, and the absolute one
+    /// of the cell boundaries.
     tolerance: f64,
+    slack: f64,
 }
 
 impl Locator {
-    fn new(
-        nodes: &[[f64; 3]],
-        elements: &[usize],
-        npe: usize,
-        dim: usize,
-        cell: f64,
-        width: f64,
-        depth: f64,
-    ) -> Self {
-        let nx = (width / cell).ceil() as usize + 1;
-        let ny = (depth / cell).ceil() as usize + 1;
-        let mut buckets = vec![Vec::new(); nx * ny];
+    fn new(nodes: &[[f64; 3]], elements: &[usize], npe: usize, dim: usize) -> Self {
+        let corners = |element: &[usize]| -> Vec<[f64; 3]> {
+            element[..=dim].iter().map(|&n| nodes[n]).collect()
+        };
+        let extent = (0..dim)
+            .map(|c| {
+                let (lo, hi) = nodes
+                    .iter()
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |m, n| {
+                        (m.0.min(n[c]), m.1.max(n[c]))
+                    });
+                hi - lo
+            })
+            .fold(0.0, f64::max);
+        let slack = 1e-9 * extent;
+        let lines: [Vec<f64>; 3] = std::array::from_fn(|c| {
+            if c >= dim {
+                return vec![f64::NEG_INFINITY, f64::INFINITY];
+            }
+            let mut v: Vec<f64> = elements
+                .chunks(npe)
+                .flat_map(|e| corners(e).into_iter().map(move |p| p[c]))
+                .collect();
+            v.sort_by(f64::total_cmp);
+            v.dedup_by(|b, a| *b - *a <= slack);
+            v
+        });
+        let counts: [usize; 3] = std::array::from_fn(|c| lines[c].len() - 1);
+        let mut cells = vec![Vec::new(); counts.iter().product()];
         let mut maps = Vec::with_capacity(elements.len() / npe);
         for (e, element) in elements.chunks(npe).enumerate() {
-            let corners: Vec<[f64; 3]> = element[..=dim].iter().map(|&n| nodes[n]).collect();
-            let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-            for c in &corners {
-                for k in 0..2 {
-                    lo[k] = lo[k].min(c[k]);
-                    hi[k] = hi[k].max(c[k]);
-                }
+            let corners = corners(element);
+            let mut range = [(0, 0); 3];
+            for (c, r) in range.iter_mut().enumerate() {
+                let lo = corners.iter().map(|p| p[c]).fold(f64::INFINITY, f64::min);
+                let hi = corners
+                    .iter()
+                    .map(|p| p[c])
+                    .fold(f64::NEG_INFINITY, f64::max);
+                // The cells whose interior the element's box overlaps.
+                let first = lines[c][1..].partition_point(|&l| l <= lo + slack);
+                let last = lines[c][..counts[c]].partition_point(|&l| l < hi - slack);
+                *r = (first, last.max(first + 1).min(counts[c]));
             }
-            let (i0, j0) = (
-                ((lo[0] / cell).floor().max(0.0)) as usize,
-                ((lo[1] / cell).floor().max(0.0)) as usize,
-            );
-            let (i1, j1) = (
-                ((hi[0] / cell).floor() as usize).min(nx - 1),
-                ((hi[1] / cell).floor() as usize).min(ny - 1),
-            );
-            for j in j0..=j1 {
-                for i in i0..=i1 {
-                    buckets[j * nx + i].push(e);
+            for k in range[2].0..range[2].1 {
+                for j in range[1].0..range[1].1 {
+                    for i in range[0].0..range[0].1 {
+                        cells[(k * counts[1] + j) * counts[0] + i].push(e);
+                    }
                 }
             }
             let mut jac = [[0.0; 3]; 3];
@@ -411,37 +428,57 @@ impl Locator {
             maps.push((corners[0], invert3(&jac)));
         }
         Self {
-            cell,
-            nx,
-            ny,
-            buckets,
+            lines,
+            cells,
             maps,
             tolerance: 1e-9,
+            slack,
         }
     }
 
     /// The element holding `p` and its reference coordinates; of several
-    /// (on shared faces) the one where `p` lies deepest inside.
+    /// (on shared faces) the one where `p` lies deepest inside, the first
+    /// listed on a tie.
     fn find(&self, p: [f64; 3], dim: usize) -> Option<(usize, [f64; 3])> {
-        let i = (p[0] / self.cell).floor();
-        let j = (p[1] / self.cell).floor();
-        if !(i >= -1.0 && j >= -1.0) {
-            return None;
-        }
-        let i = (i.max(0.0) as usize).min(self.nx - 1);
-        let j = (j.max(0.0) as usize).min(self.ny - 1);
-        let mut best: Option<(usize, [f64; 3], f64)> = None;
-        for &e in &self.buckets[j * self.nx + i] {
-            let (origin, inverse) = &self.maps[e];
-            let d = [p[0] - origin[0], p[1] - origin[1], p[2] - origin[2]];
-            let mut xi = [0.0; 3];
-            for r in 0..dim {
-                xi[r] = (0..dim).map(|c| inverse[r][c] * d[c]).sum();
+        // The cells within `slack` of p along each axis: one, or two on a
+        // boundary; none if p lies outside the grid.
+        let mut range = [(0, 0); 3];
+        for (c, r) in range.iter_mut().enumerate() {
+            let lines = &self.lines[c];
+            let count = lines.len() - 1;
+            let first = lines[1..].partition_point(|&l| l < p[c] - self.slack);
+            let last = lines[..count].partition_point(|&l| l <= p[c] + self.slack);
+            if first >= last {
+                return None;
             }
-            let l0 = 1.0 - xi[..dim].iter().sum::<f64>();
-            let inside = xi[..dim].iter().copied().fold(l0, f64::min);
-            if best.as_ref().is_none_or(|b| inside > b.2) {
-                best = Some((e, xi, inside));
+            *r = (first, last);
+        }
+        let counts = [
+            self.lines[0].len() - 1,
+            self.lines[1].len() - 1,
+            self.lines[2].len() - 1,
+        ];
+        let mut best: Option<(usize, [f64; 3], f64)> = None;
+        for k in range[2].0..range[2].1 {
+            for j in range[1].0..range[1].1 {
+                for i in range[0].0..range[0].1 {
+                    for &e in &self.cells[(k * counts[1] + j) * counts[0] + i] {
+                        let (origin, inverse) = &self.maps[e];
+                        let d = [p[0] - origin[0], p[1] - origin[1], p[2] - origin[2]];
+                        let mut xi = [0.0; 3];
+                        for r in 0..dim {
+                            xi[r] = (0..dim).map(|c| inverse[r][c] * d[c]).sum();
+                        }
+                        let l0 = 1.0 - xi[..dim].iter().sum::<f64>();
+                        let inside = xi[..dim].iter().copied().fold(l0, f64::min);
+                        let better = best
+                            .as_ref()
+                            .is_none_or(|b| inside > b.2 || (inside == b.2 && e < b.0));
+                        if better {
+                            best = Some((e, xi, inside));
+                        }
+                    }
+                }
             }
         }
         best.filter(|b| b.2 >= -self.tolerance)

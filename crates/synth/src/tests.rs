@@ -172,6 +172,68 @@ fn largest_gap(a: &[f64], b: &[f64]) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// The barycentric coordinates of `p` in the straight simplex `e`.
+fn barycentric(body: &crate::body::Body, e: usize, p: [f64; 3]) -> Vec<f64> {
+    let corner = |k: usize| body.nodes[body.element(e)[k]];
+    let mut jacobian = [[0.0; 3]; 3];
+    for (k, row) in jacobian.iter_mut().enumerate() {
+        row[k] = 1.0;
+    }
+    for col in 0..body.dim {
+        for row in 0..body.dim {
+            jacobian[row][col] = corner(col + 1)[row] - corner(0)[row];
+        }
+    }
+    let inverse = crate::body::invert3(&jacobian);
+    let d: Vec<f64> = (0..3).map(|c| p[c] - corner(0)[c]).collect();
+    let xi: Vec<f64> = (0..body.dim)
+        .map(|r| (0..body.dim).map(|c| inverse[r][c] * d[c]).sum())
+        .collect();
+    std::iter::once(1.0 - xi.iter().sum::<f64>())
+        .chain(xi)
+        .collect()
+}
+
+#[test]
+fn every_point_of_the_body_is_located_in_an_element_that_holds_it() {
+    for s in plane_and_slab() {
+        let world = World::new(&s).unwrap();
+        let body = &world.body;
+        let (lo, hi) = body.bounds();
+        // Every node (on the grid's lines, edges and corners, the hardest
+        // case) and points spread through the box by a Weyl sequence.
+        let mut points = body.nodes.clone();
+        let steps = [0.618_033_988_7, 0.754_877_666_2, 0.569_840_290_9];
+        points.extend((1..2000).map(|k| {
+            std::array::from_fn(|c| {
+                let t = (k as f64 * steps[c]).fract();
+                lo[c] + t * (hi[c] - lo[c])
+            })
+        }));
+        for p in points {
+            let at = body
+                .locate(p)
+                .unwrap_or_else(|| panic!("{p:?} is in the body but was not located"));
+            let worst = barycentric(body, at.element, p)
+                .into_iter()
+                .fold(f64::INFINITY, f64::min);
+            assert!(worst >= -1e-9, "{p:?} lies outside element {}", at.element);
+        }
+        let beyond = 1e-6 * (hi[0] - lo[0]);
+        for c in 0..body.dim {
+            let mut p = [
+                0.5 * (lo[0] + hi[0]),
+                0.5 * (lo[1] + hi[1]),
+                0.5 * (lo[2] + hi[2]),
+            ];
+            p[c] = hi[c] + beyond;
+            assert!(body.locate(p).is_none(), "{p:?} lies outside the body");
+            p[c] = lo[c] - beyond;
+            assert!(body.locate(p).is_none(), "{p:?} lies outside the body");
+        }
+    }
+}
+
 #[test]
 fn stiffened_day_shares_the_factorisation_and_scales_exactly() {
     let mut s = small();
