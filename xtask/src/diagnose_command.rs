@@ -42,6 +42,11 @@ pub struct DiagnoseArgs {
     /// marker spacing in the plane.
     #[arg(long, default_value_t = DiagnoseOptions::default().slab_refinement)]
     slab_refinement: usize,
+    /// Radius of the needle (m; the paper's 17 gauge needle: 0.000735).
+    /// The `out_of_plane` slab reads the needle's drag on its surface; 0
+    /// reads it on the axis.
+    #[arg(long, default_value_t = DiagnoseOptions::default().needle_radius)]
+    needle_radius: f64,
     /// Output folder (must not exist); default: a new folder under `out/`.
     #[arg(long)]
     out: Option<PathBuf>,
@@ -70,6 +75,7 @@ pub fn run(args: &DiagnoseArgs) -> Result<(), String> {
         frames_per_trial: args.frames_per_trial,
         refinement: args.refinement,
         slab_refinement: args.slab_refinement,
+        needle_radius: args.needle_radius,
         ..DiagnoseOptions::default()
     };
     options.validate().map_err(|e| e.to_string())?;

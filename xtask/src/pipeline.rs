@@ -105,7 +105,7 @@ pub fn run(args: &PipelineArgs) -> Result<(), String> {
         invert_forces(&bundle, material, args.quick, &folder, &mut report)
     })?;
     stages.time("diagnosis and simulation", || {
-        diagnose_stage(&folder, args.quick, &mut report)
+        diagnose_stage(&folder, args.quick, scenario.needles.radius, &mut report)
     })?;
     stages.print();
     report.table(
@@ -666,7 +666,13 @@ fn invert_forces(
 
 /// Stage 5: the diagnosis loop from the paper's baseline, and the fitted
 /// model's simulation of every insertion against the measured markers.
-fn diagnose_stage(folder: &OutputFolder, quick: bool, report: &mut Report) -> Result<(), String> {
+/// The model's needle has the radius of the instrument the campaign used.
+fn diagnose_stage(
+    folder: &OutputFolder,
+    quick: bool,
+    needle_radius: f64,
+    report: &mut Report,
+) -> Result<(), String> {
     let bar = spinner("diagnosis: fit, rank the missing effects, add, refit");
     let options = DiagnoseOptions {
         add_recommended: true,
@@ -675,6 +681,7 @@ fn diagnose_stage(folder: &OutputFolder, quick: bool, report: &mut Report) -> Re
         // model reaches once `out_of_plane` is in, and named
         // `layered_stiffness`, which is not hidden, on the quick campaign.
         refinement: DIAGNOSIS_REFINEMENT,
+        needle_radius,
         ..DiagnoseOptions::default()
     };
     sequential_linear_algebra();

@@ -48,6 +48,12 @@ const PLANE_CACHE_SIZE: usize = 48;
 /// about 100 MB for the default marker grid, so 48 of them took 5 GB.
 const SLAB_CACHE_SIZE: usize = 8;
 
+/// Points of a needle's surface, on the half circle above the mid-plane,
+/// over which [`Body::needle_drag`] averages: with the mirrored half, twelve
+/// around the needle (the truth's count; three per half moved the truth's
+/// markers by up to 2.9 um against twelve).
+const RIM_POINTS: usize = 6;
+
 /// Gauss-Chebyshev points across a probe's contact patch: the rigid flat
 /// punch's pressure $p(s) \propto 1/\sqrt{1 - (2s/a)^2}$ is the rule's
 /// weight, so equal forces at $s_i = \tfrac a2 \cos\frac{(2i+1)\pi}{2n}$
@@ -631,6 +637,60 @@ impl<const D: usize> Body<D> {
         Ok([v[0] / scale, v[1] / scale])
     }
 
+    /// The drag that places a needle's load at the mid-plane point `xy`
+    /// (clamped into the outline), for a needle along `direction` of
+    /// `radius`: in the slab the mean in-plane displacement over
+    /// [`RIM_POINTS`] points of its surface, at angles
+    /// $\theta_k = (k + \tfrac12)\pi/n$ on the half circle around the axis
+    /// in the plane normal to the needle (the upper half's; the whole
+    /// slab lists the mirrored half too), else [`Body::mid_plane_displacement`].
+    /// In 3-D a line load's displacement grows as $\ln r$ towards the
+    /// line, so a drag read on the axis grows as the slab is refined
+    /// towards the needle; read on its surface it settles.
+    pub fn needle_drag(
+        &self,
+        locator: &Locator<'_, D>,
+        u: &[f64],
+        scale: f64,
+        xy: [f64; 2],
+        direction: [f64; 2],
+        radius: f64,
+    ) -> Result<[f64; 2], DiagnoseError> {
+        if D == 2 || radius == 0.0 {
+            return self.mid_plane_displacement(locator, u, scale, xy);
+        }
+        let normal = [direction[1], -direction[0]];
+        let sides: &[f64] = match self.span {
+            Span::UpperHalf => &[1.0],
+            Span::Whole => &[1.0, -1.0],
+        };
+        let top = 0.5 * self.thickness;
+        let count = (RIM_POINTS * sides.len()) as f64;
+        let mut v = [0.0; 2];
+        for &side in sides {
+            for k in 0..RIM_POINTS {
+                let t = (k as f64 + 0.5) * std::f64::consts::PI / RIM_POINTS as f64;
+                let plan = [
+                    (xy[0] + radius * t.cos() * normal[0]).clamp(0.0, self.extent[0]),
+                    (xy[1] + radius * t.cos() * normal[1]).clamp(0.0, self.extent[1]),
+                ];
+                let z = (side * radius * t.sin()).clamp(-top, top);
+                let point = lift::<D>(plan, z);
+                let weights = locator.weights(point).ok_or_else(|| {
+                    needle_fem::FemError::PointOutsideMesh {
+                        index: 0,
+                        coordinates: point.to_vec(),
+                    }
+                })?;
+                for (n, w) in weights {
+                    v[0] += w * u[D * n] / count;
+                    v[1] += w * u[D * n + 1] / count;
+                }
+            }
+        }
+        Ok([v[0] / scale, v[1] / scale])
+    }
+
     /// Largest x and y of the outline.
     pub fn extent(&self) -> [f64; 2] {
         self.extent
@@ -721,6 +781,101 @@ mod tests {
             &[[0.0375, 0.0375]],
         )
         .unwrap()
+    }
+
+    /// A needle along y, 30 mm into the slab at x = 30 mm: on a slab the
+    /// drag read on the needle's surface is smaller than on its axis (in
+    /// 3-D the displacement grows towards a line load), it tends to the
+    /// axis's as the radius shrinks, and the plane body ignores the radius.
+    #[test]
+    fn a_needles_drag_on_its_surface_is_below_its_axis_and_shrinks_to_it() {
+        let shaft = Shaft {
+            entry: [0.03, 0.0],
+            direction: [0.0, 1.0],
+            length: 0.03,
+        };
+        let placement = Placement::spatial(&shaft);
+        let plane = Body::new(
+            RectangleMesh::uniform(0.075, 0.075, 8, 8)
+                .unwrap()
+                .build(ElementKind::Tri6)
+                .unwrap(),
+            Formulation::PlaneStrain {
+                thickness: THICKNESS,
+            },
+            THICKNESS,
+            Span::Whole,
+            vec![Face::Back],
+            &[[0.0375, 0.0375]],
+        )
+        .unwrap();
+        let point = [0.03, 0.015];
+        let slab = slab_body();
+        let locator = slab.locator();
+        let load = slab
+            .needle_load(&locator, &shaft, &placement, &|_| 5.0, &[])
+            .unwrap();
+        let moduli = vec![MODULUS; slab.centroids.len()];
+        let factorized = slab
+            .factorized(&moduli, POISSON, SupportSpec::default())
+            .unwrap();
+        let u = factorized
+            .entry
+            .problem
+            .displacements_many(&[&load])
+            .unwrap();
+        let drag = |radius: f64| {
+            slab.needle_drag(
+                &locator,
+                &u[0],
+                factorized.scale,
+                point,
+                shaft.direction,
+                radius,
+            )
+            .unwrap()
+        };
+        let axis = slab
+            .mid_plane_displacement(&locator, &u[0], factorized.scale, point)
+            .unwrap();
+        assert!(axis[1] > 0.0, "the needle drags the tissue along: {axis:?}");
+        let surface = drag(0.001);
+        assert!(surface[1] < 0.99 * axis[1], "{surface:?} against {axis:?}");
+        let thin = drag(1e-9);
+        assert!(
+            (thin[1] - axis[1]).abs() < 1e-6 * axis[1],
+            "{thin:?} against {axis:?}"
+        );
+        assert_eq!(drag(0.0), axis);
+
+        let locator = plane.locator();
+        let load = plane
+            .needle_load(&locator, &shaft, &placement, &|_| 5.0, &[])
+            .unwrap();
+        let moduli = vec![MODULUS; plane.centroids.len()];
+        let factorized = plane
+            .factorized(&moduli, POISSON, SupportSpec::default())
+            .unwrap();
+        let u = factorized
+            .entry
+            .problem
+            .displacements_many(&[&load])
+            .unwrap();
+        assert_eq!(
+            plane
+                .needle_drag(
+                    &locator,
+                    &u[0],
+                    factorized.scale,
+                    point,
+                    shaft.direction,
+                    0.001
+                )
+                .unwrap(),
+            plane
+                .mid_plane_displacement(&locator, &u[0], factorized.scale, point)
+                .unwrap()
+        );
     }
 
     /// The unit probe load on a Tet10 slab of two layers (the forward

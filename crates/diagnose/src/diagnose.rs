@@ -250,6 +250,7 @@ pub fn diagnose_campaign(
         &obs.rest,
         options.refinement,
         options.slab_refinement,
+        options.needle_radius,
     )?;
     let measured = obs.measured();
     let marker_count = obs.marker_count();

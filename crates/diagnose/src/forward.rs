@@ -198,6 +198,8 @@ pub(crate) struct Forward {
     /// `place`).
     placement_rounds: usize,
     slab_placement_rounds: usize,
+    /// The needle's radius, for its drag on the slab (see `place`).
+    needle_radius: f64,
     plane: Body<2>,
     /// The `out_of_plane` slab's upper half (see `body`), and the whole
     /// mirrored slab, made on first use, for a foundation under it.
@@ -251,14 +253,23 @@ fn plan(
 impl Forward {
     /// The bodies for `phantom` with markers at `rest`: the plane model
     /// with elements `refinement` times smaller than the marker spacing,
-    /// the slab `slab_refinement` times.
+    /// the slab `slab_refinement` times; a needle of `needle_radius`.
     pub fn new(
         phantom: &needle_data::Phantom,
         rest: &[[f64; 2]],
         refinement: usize,
         slab_refinement: usize,
+        needle_radius: f64,
     ) -> Result<Self, DiagnoseError> {
         let (width, depth, thickness) = (phantom.width, phantom.depth, phantom.thickness);
+        if needle_radius >= 0.25 * thickness {
+            return Err(DiagnoseError::InvalidOption {
+                field: "needle_radius",
+                reason: format!(
+                    "{needle_radius} m must be below a quarter of the phantom's thickness, {thickness} m"
+                ),
+            });
+        }
         let fixed: Vec<Face> = phantom.fixed.iter().map(|&f| fem_face(f)).collect();
         let plane = Body::new(
             plan(width, depth, rest, refinement)?.build(ElementKind::Tri6)?,
@@ -306,6 +317,7 @@ impl Forward {
             rest: rest.to_vec(),
             placement_rounds: PLACEMENT_ROUNDS,
             slab_placement_rounds: SLAB_PLACEMENT_ROUNDS,
+            needle_radius,
         })
     }
 
@@ -509,7 +521,14 @@ impl Forward {
                     .zip(&mut mixings)
                     .map(|(((&(_, _, shaft), placement), u), mixing)| {
                         let displacement = |xy: [f64; 2]| {
-                            body.mid_plane_displacement(&locator, u, factorized.scale, xy)
+                            body.needle_drag(
+                                &locator,
+                                u,
+                                factorized.scale,
+                                xy,
+                                shaft.direction,
+                                self.needle_radius,
+                            )
                         };
                         let solved = placement.replaced(&shaft, &displacement, body.extent())?;
                         Ok::<_, DiagnoseError>(mixing.next(placement, solved, body.extent()))
@@ -877,17 +896,33 @@ mod tests {
         Observations::from_campaign(&builder.finish(), 1, 0.005, 0, 1.0).unwrap()
     }
 
-    /// The observations of [`observations`] on the paper's phantom, its
-    /// forward model and a baseline start.
-    fn paper_forward() -> (Observations, Forward, Baseline) {
-        let obs = observations();
-        let phantom = Phantom {
+    fn paper_phantom() -> Phantom {
+        Phantom {
             width: 0.075,
             depth: 0.075,
             thickness: 0.0075,
             fixed: vec![needle_data::Face::Back],
-        };
-        let forward = Forward::new(&phantom, &obs.rest, 1, 1).unwrap();
+        }
+    }
+
+    #[test]
+    fn a_needle_as_thick_as_a_quarter_of_the_phantom_is_refused() {
+        let obs = observations();
+        let refused = Forward::new(&paper_phantom(), &obs.rest, 1, 1, 0.25 * 0.0075);
+        assert!(matches!(
+            refused,
+            Err(DiagnoseError::InvalidOption {
+                field: "needle_radius",
+                ..
+            })
+        ));
+    }
+
+    /// The observations of [`observations`] on the paper's phantom, its
+    /// forward model and a baseline start.
+    fn paper_forward() -> (Observations, Forward, Baseline) {
+        let obs = observations();
+        let forward = Forward::new(&paper_phantom(), &obs.rest, 1, 1, 0.0).unwrap();
         let start = Baseline {
             youngs_modulus: 25.0e3,
             poisson_ratio: 0.45,
