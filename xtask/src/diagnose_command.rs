@@ -47,6 +47,10 @@ pub struct DiagnoseArgs {
     /// reads it on the axis.
     #[arg(long, default_value_t = DiagnoseOptions::default().needle_radius)]
     needle_radius: f64,
+    /// Grade the `out_of_plane` slab towards the needles' lines and
+    /// entries (about twice the slab's cost).
+    #[arg(long)]
+    slab_needle_grading: bool,
     /// Output folder (must not exist); default: a new folder under `out/`.
     #[arg(long)]
     out: Option<PathBuf>,
@@ -76,6 +80,7 @@ pub fn run(args: &DiagnoseArgs) -> Result<(), String> {
         refinement: args.refinement,
         slab_refinement: args.slab_refinement,
         needle_radius: args.needle_radius,
+        slab_needle_grading: args.slab_needle_grading,
         ..DiagnoseOptions::default()
     };
     options.validate().map_err(|e| e.to_string())?;

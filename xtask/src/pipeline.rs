@@ -682,6 +682,7 @@ fn diagnose_stage(
         // `layered_stiffness`, which is not hidden, on the quick campaign.
         refinement: DIAGNOSIS_REFINEMENT,
         needle_radius,
+        slab_needle_grading: !quick,
         ..DiagnoseOptions::default()
     };
     sequential_linear_algebra();

@@ -245,11 +245,23 @@ pub fn diagnose_campaign(
         options.frames_per_trial,
         options.probe_near_field,
     )?;
+    let needles: Vec<([f64; 2], [f64; 2])> = if options.slab_needle_grading {
+        obs.frames
+            .iter()
+            .filter_map(|f| match f.load {
+                Load::Needle(shaft) => Some((shaft.entry, shaft.direction)),
+                _ => None,
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
     let forward = Forward::new(
         &campaign.phantom,
         &obs.rest,
         options.refinement,
         options.slab_refinement,
+        &needles,
         options.needle_radius,
     )?;
     let measured = obs.measured();

@@ -227,6 +227,52 @@ fn distinct(values: impl Iterator<Item = f64>, tolerance: f64) -> Vec<f64> {
     v
 }
 
+/// `plan` with node lines added towards every needle along x or y
+/// (`needles`: entry points and directions): on the needle's line and
+/// half the plan's largest spacing $h$ either side, and at $h/2$, $h/4$
+/// and $h/8$ from its entry. In 3-D the field of the needle's load
+/// varies fastest within a millimetre or two of its line and where it
+/// meets the entry face; on the default campaign, with the needle's
+/// surface drag, these lines took the final model's marker chi2/dof from
+/// 1.029 to 1.018 (`docs/benchmarks.md`, session 15). An oblique needle
+/// adds none. A new line closer than $h/16$ to a line already there (or
+/// to a side) is left out.
+fn graded_towards_needles(
+    mut plan: RectangleMesh,
+    needles: &[([f64; 2], [f64; 2])],
+) -> RectangleMesh {
+    let spacing = |lines: &[f64]| lines.windows(2).map(|w| w[1] - w[0]).fold(0.0, f64::max);
+    let h = spacing(&plan.x_lines).max(spacing(&plan.y_lines));
+    let aligned = 1e-6;
+    let mut added = [Vec::new(), Vec::new()];
+    for &(entry, direction) in needles {
+        for across in 0..2 {
+            let along = 1 - across;
+            if direction[across].abs() > aligned {
+                continue;
+            }
+            added[across].extend([-0.5 * h, 0.0, 0.5 * h].map(|d| entry[across] + d));
+            let inward = direction[along].signum();
+            added[along].extend([0.5, 0.25, 0.125].map(|f| entry[along] + inward * f * h));
+        }
+    }
+    let tolerance = h / 16.0;
+    for (lines, added) in [&mut plan.x_lines, &mut plan.y_lines]
+        .into_iter()
+        .zip(added)
+    {
+        let (first, last) = (lines[0], lines[lines.len() - 1]);
+        for line in added {
+            let clear = lines.iter().all(|l| (l - line).abs() > tolerance);
+            if clear && line > first && line < last {
+                lines.push(line);
+                lines.sort_by(f64::total_cmp);
+            }
+        }
+    }
+    plan
+}
+
 /// The plan of a rectangle mesh with a node line through every marker when
 /// the markers form a grid, else a uniform mesh of about the marker
 /// spacing; elements `refinement` times smaller.
@@ -253,12 +299,15 @@ fn plan(
 impl Forward {
     /// The bodies for `phantom` with markers at `rest`: the plane model
     /// with elements `refinement` times smaller than the marker spacing,
-    /// the slab `slab_refinement` times; a needle of `needle_radius`.
+    /// the slab `slab_refinement` times, graded towards the needles'
+    /// lines and entries when `needles` (entry points and directions) are
+    /// given; a needle of `needle_radius`.
     pub fn new(
         phantom: &needle_data::Phantom,
         rest: &[[f64; 2]],
         refinement: usize,
         slab_refinement: usize,
+        needles: &[([f64; 2], [f64; 2])],
         needle_radius: f64,
     ) -> Result<Self, DiagnoseError> {
         let (width, depth, thickness) = (phantom.width, phantom.depth, phantom.thickness);
@@ -280,7 +329,7 @@ impl Forward {
             rest,
         )?;
         let slab_plan = SlabMesh::new(
-            plan(width, depth, rest, slab_refinement)?,
+            graded_towards_needles(plan(width, depth, rest, slab_refinement)?, needles),
             thickness,
             SLAB_LAYERS,
         )?;
@@ -906,9 +955,53 @@ mod tests {
     }
 
     #[test]
+    fn the_slab_is_graded_towards_needles_along_an_axis_only() {
+        let uniform = RectangleMesh::uniform(0.08, 0.08, 8, 8).unwrap();
+        let h = 0.01;
+        let along_y = ([0.03, 0.0], [0.0, 1.0]);
+        let oblique = ([0.05, 0.0], [0.6, 0.8]);
+        let graded = graded_towards_needles(uniform.clone(), &[along_y, oblique, along_y]);
+        // The needle's line is already a line; half a spacing either side
+        // is new, nothing for the oblique needle or for the repeat.
+        let expected_x: Vec<f64> = {
+            let mut v = uniform.x_lines.clone();
+            v.extend([0.03 - 0.5 * h, 0.03 + 0.5 * h]);
+            v.sort_by(f64::total_cmp);
+            v
+        };
+        let close = |a: &[f64], b: &[f64]| {
+            a.len() == b.len() && a.iter().zip(b).all(|(p, q)| (p - q).abs() < 1e-12)
+        };
+        assert!(close(&graded.x_lines, &expected_x), "{:?}", graded.x_lines);
+        let mut expected_y = uniform.y_lines.clone();
+        expected_y.extend([0.125 * h, 0.25 * h, 0.5 * h]);
+        expected_y.sort_by(f64::total_cmp);
+        assert!(close(&graded.y_lines, &expected_y), "{:?}", graded.y_lines);
+        // A needle along x entering the side x = 0.08 grades y around its
+        // line and x inwards from that side; sides are never moved.
+        let along_x = ([0.08, 0.0401], [-1.0, 0.0]);
+        let graded = graded_towards_needles(uniform.clone(), &[along_x]);
+        assert_eq!(graded.x_lines.first(), Some(&0.0));
+        assert_eq!(graded.x_lines.last(), Some(&0.08));
+        for x in [0.08 - 0.5 * h, 0.08 - 0.25 * h, 0.08 - 0.125 * h] {
+            assert!(graded.x_lines.iter().any(|l| (l - x).abs() < 1e-12), "{x}");
+        }
+        // 0.0401 is within h/16 of the line at 0.04: left out.
+        assert!(!graded.y_lines.iter().any(|l| (l - 0.0401).abs() < 1e-12));
+        assert!(
+            graded
+                .y_lines
+                .iter()
+                .any(|l| (l - (0.0401 + 0.5 * h)).abs() < 1e-12)
+        );
+        let plan = graded.build(ElementKind::Tri6);
+        assert!(plan.is_ok());
+    }
+
+    #[test]
     fn a_needle_as_thick_as_a_quarter_of_the_phantom_is_refused() {
         let obs = observations();
-        let refused = Forward::new(&paper_phantom(), &obs.rest, 1, 1, 0.25 * 0.0075);
+        let refused = Forward::new(&paper_phantom(), &obs.rest, 1, 1, &[], 0.25 * 0.0075);
         assert!(matches!(
             refused,
             Err(DiagnoseError::InvalidOption {
@@ -922,7 +1015,7 @@ mod tests {
     /// forward model and a baseline start.
     fn paper_forward() -> (Observations, Forward, Baseline) {
         let obs = observations();
-        let forward = Forward::new(&paper_phantom(), &obs.rest, 1, 1, 0.0).unwrap();
+        let forward = Forward::new(&paper_phantom(), &obs.rest, 1, 1, &[], 0.0).unwrap();
         let start = Baseline {
             youngs_modulus: 25.0e3,
             poisson_ratio: 0.45,
