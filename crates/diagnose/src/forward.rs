@@ -40,7 +40,12 @@
 //!   difference: on the default 21 x 21 campaign the needle trials
 //!   misfit the 3-D truth at $\chi^2/\nu = 7$ at its own parameters
 //!   (18 on the lines nearest the free sides), against 1.07 with the
-//!   slab's own placement.
+//!   slab's own placement. A needle of finite radius
+//!   (`DiagnoseOptions::needle_radius`) places its load on the slab by
+//!   the drag of its surface, not of its axis (`Body::needle_drag`): the
+//!   axis's grows without bound as the slab is refined towards it, the
+//!   surface's settles. The slab may be graded towards the needles
+//!   (`graded_towards_needles`).
 //!   The finite-difference columns of a candidate's refit and of the score
 //!   test start each body from its own placement at the base point instead
 //!   ([`Start::Near`], `place::NEAR_ROUNDS` rounds): the placement barely
