@@ -203,7 +203,7 @@ pub(crate) struct Forward {
     /// `place`).
     placement_rounds: usize,
     slab_placement_rounds: usize,
-    /// The needle's radius, for its drag on the slab (see `place`).
+    /// The needle's radius, for its drag on the slab (`Body::needle_drag`).
     needle_radius: f64,
     plane: Body<2>,
     /// The `out_of_plane` slab's upper half (see `body`), and the whole

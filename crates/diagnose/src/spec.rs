@@ -97,7 +97,7 @@ pub struct DiagnoseOptions {
     pub slab_refinement: usize,
     /// Radius of the needle (m), 0 for a line. The `out_of_plane` slab
     /// places the needle's load by the drag of the needle's surface, not
-    /// of its axis (`Body::needle_drag`); at most a quarter of the
+    /// of its axis (`Body::needle_drag`); below a quarter of the
     /// phantom's thickness. A bundle does not state it: it is the
     /// instrument's, like its gauge.
     pub needle_radius: f64,
