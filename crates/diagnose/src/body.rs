@@ -783,18 +783,56 @@ mod tests {
         .unwrap()
     }
 
-    /// A needle along y, 30 mm into the slab at x = 30 mm: on a slab the
-    /// drag read on the needle's surface is smaller than on its axis (in
-    /// 3-D the displacement grows towards a line load), it tends to the
-    /// axis's as the radius shrinks, and the plane body ignores the radius.
-    #[test]
-    fn a_needles_drag_on_its_surface_is_below_its_axis_and_shrinks_to_it() {
+    /// On `body` under a needle along y, 30 mm into it at x = 30 mm, the
+    /// drag of a needle of `radius` halfway along it, and the mid-plane
+    /// displacement on its axis there.
+    fn drag_and_axis<const D: usize>(body: &Body<D>, radius: f64) -> ([f64; 2], [f64; 2]) {
         let shaft = Shaft {
             entry: [0.03, 0.0],
             direction: [0.0, 1.0],
             length: 0.03,
         };
-        let placement = Placement::spatial(&shaft);
+        let point = [0.03, 0.015];
+        let locator = body.locator();
+        let load = body
+            .needle_load(&locator, &shaft, &Placement::spatial(&shaft), &|_| 5.0, &[])
+            .unwrap();
+        let moduli = vec![MODULUS; body.centroids.len()];
+        let factorized = body
+            .factorized(&moduli, POISSON, SupportSpec::default())
+            .unwrap();
+        let u = factorized
+            .entry
+            .problem
+            .displacements_many(&[&load])
+            .unwrap();
+        let scale = factorized.scale;
+        let drag = body
+            .needle_drag(&locator, &u[0], scale, point, shaft.direction, radius)
+            .unwrap();
+        let axis = body
+            .mid_plane_displacement(&locator, &u[0], scale, point)
+            .unwrap();
+        (drag, axis)
+    }
+
+    /// On a slab the drag read on the needle's surface is smaller than on
+    /// its axis (in 3-D the displacement grows towards a line load), and
+    /// tends to the axis's as the radius shrinks; the plane body ignores
+    /// the radius.
+    #[test]
+    fn a_needles_drag_on_its_surface_is_below_its_axis_and_shrinks_to_it() {
+        let slab = slab_body();
+        let (surface, axis) = drag_and_axis(&slab, 0.001);
+        assert!(axis[1] > 0.0, "the needle drags the tissue along: {axis:?}");
+        assert!(surface[1] < 0.99 * axis[1], "{surface:?} against {axis:?}");
+        let (thin, _) = drag_and_axis(&slab, 1e-9);
+        assert!(
+            (thin[1] - axis[1]).abs() < 1e-6 * axis[1],
+            "{thin:?} against {axis:?}"
+        );
+        assert_eq!(drag_and_axis(&slab, 0.0).0, axis);
+
         let plane = Body::new(
             RectangleMesh::uniform(0.075, 0.075, 8, 8)
                 .unwrap()
@@ -809,73 +847,8 @@ mod tests {
             &[[0.0375, 0.0375]],
         )
         .unwrap();
-        let point = [0.03, 0.015];
-        let slab = slab_body();
-        let locator = slab.locator();
-        let load = slab
-            .needle_load(&locator, &shaft, &placement, &|_| 5.0, &[])
-            .unwrap();
-        let moduli = vec![MODULUS; slab.centroids.len()];
-        let factorized = slab
-            .factorized(&moduli, POISSON, SupportSpec::default())
-            .unwrap();
-        let u = factorized
-            .entry
-            .problem
-            .displacements_many(&[&load])
-            .unwrap();
-        let drag = |radius: f64| {
-            slab.needle_drag(
-                &locator,
-                &u[0],
-                factorized.scale,
-                point,
-                shaft.direction,
-                radius,
-            )
-            .unwrap()
-        };
-        let axis = slab
-            .mid_plane_displacement(&locator, &u[0], factorized.scale, point)
-            .unwrap();
-        assert!(axis[1] > 0.0, "the needle drags the tissue along: {axis:?}");
-        let surface = drag(0.001);
-        assert!(surface[1] < 0.99 * axis[1], "{surface:?} against {axis:?}");
-        let thin = drag(1e-9);
-        assert!(
-            (thin[1] - axis[1]).abs() < 1e-6 * axis[1],
-            "{thin:?} against {axis:?}"
-        );
-        assert_eq!(drag(0.0), axis);
-
-        let locator = plane.locator();
-        let load = plane
-            .needle_load(&locator, &shaft, &placement, &|_| 5.0, &[])
-            .unwrap();
-        let moduli = vec![MODULUS; plane.centroids.len()];
-        let factorized = plane
-            .factorized(&moduli, POISSON, SupportSpec::default())
-            .unwrap();
-        let u = factorized
-            .entry
-            .problem
-            .displacements_many(&[&load])
-            .unwrap();
-        assert_eq!(
-            plane
-                .needle_drag(
-                    &locator,
-                    &u[0],
-                    factorized.scale,
-                    point,
-                    shaft.direction,
-                    0.001
-                )
-                .unwrap(),
-            plane
-                .mid_plane_displacement(&locator, &u[0], factorized.scale, point)
-                .unwrap()
-        );
+        let (drag, axis) = drag_and_axis(&plane, 0.001);
+        assert_eq!(drag, axis);
     }
 
     /// The unit probe load on a Tet10 slab of two layers (the forward
