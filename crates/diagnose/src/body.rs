@@ -128,6 +128,26 @@ fn lift<const D: usize>(xy: [f64; 2], z: f64) -> [f64; D] {
     std::array::from_fn(|i| if i < 2 { xy[i] } else { z })
 }
 
+/// The in-plane components of the solution `u` interpolated at `point`.
+fn in_plane_at<const D: usize>(
+    locator: &Locator<'_, D>,
+    u: &[f64],
+    point: [f64; D],
+) -> Result<[f64; 2], DiagnoseError> {
+    let weights = locator
+        .weights(point)
+        .ok_or_else(|| needle_fem::FemError::PointOutsideMesh {
+            index: 0,
+            coordinates: point.to_vec(),
+        })?;
+    let mut v = [0.0; 2];
+    for (n, w) in weights {
+        v[0] += w * u[D * n];
+        v[1] += w * u[D * n + 1];
+    }
+    Ok(v)
+}
+
 /// The held dofs: every dof of the `faces`, and on a body of the upper
 /// half $u_z$ on its bottom face, the mid-plane.
 fn held<const D: usize>(mesh: &Mesh<D>, faces: &[Face], span: Span) -> Dirichlet {
@@ -621,19 +641,7 @@ impl<const D: usize> Body<D> {
             xy[0].clamp(0.0, self.extent[0]),
             xy[1].clamp(0.0, self.extent[1]),
         ];
-        let point = lift::<D>(inside, 0.0);
-        let weights =
-            locator
-                .weights(point)
-                .ok_or_else(|| needle_fem::FemError::PointOutsideMesh {
-                    index: 0,
-                    coordinates: point.to_vec(),
-                })?;
-        let mut v = [0.0; 2];
-        for (n, w) in weights {
-            v[0] += w * u[D * n];
-            v[1] += w * u[D * n + 1];
-        }
+        let v = in_plane_at(locator, u, lift::<D>(inside, 0.0))?;
         Ok([v[0] / scale, v[1] / scale])
     }
 
@@ -675,17 +683,9 @@ impl<const D: usize> Body<D> {
                     (xy[1] + radius * t.cos() * normal[1]).clamp(0.0, self.extent[1]),
                 ];
                 let z = (side * radius * t.sin()).clamp(-top, top);
-                let point = lift::<D>(plan, z);
-                let weights = locator.weights(point).ok_or_else(|| {
-                    needle_fem::FemError::PointOutsideMesh {
-                        index: 0,
-                        coordinates: point.to_vec(),
-                    }
-                })?;
-                for (n, w) in weights {
-                    v[0] += w * u[D * n] / count;
-                    v[1] += w * u[D * n + 1] / count;
-                }
+                let at = in_plane_at(locator, u, lift::<D>(plan, z))?;
+                v[0] += at[0] / count;
+                v[1] += at[1] / count;
             }
         }
         Ok([v[0] / scale, v[1] / scale])

@@ -271,9 +271,9 @@ fn graded_towards_needles(
             let clear = lines.iter().all(|l| (l - line).abs() > tolerance);
             if clear && line > first && line < last {
                 lines.push(line);
-                lines.sort_by(f64::total_cmp);
             }
         }
+        lines.sort_by(f64::total_cmp);
     }
     plan
 }
