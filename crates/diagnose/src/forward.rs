@@ -76,7 +76,7 @@ use needle_fem::{ElementKind, Face, Formulation, MarkerGrid, RectangleMesh, Slab
 
 use std::sync::{Arc, Mutex};
 
-use crate::body::{Body, Span};
+use crate::body::{Body, Factorized, Span};
 use crate::effect::{Geometry, ShaftPoint, SupportSpec, TrialContext};
 use crate::error::DiagnoseError;
 use crate::model::Model;
@@ -99,9 +99,10 @@ pub(crate) struct Prediction {
 #[derive(Debug, Clone, Copy)]
 enum Column {
     /// Unit force along `axis` 0 (x) or 1 (y), or unit moment about z
-    /// (`axis` 2), at a probe's contact point, of a frame whose measured
-    /// force is `force`.
+    /// (`axis` 2), at a probe's contact point, of a frame of `trial` whose
+    /// measured force is `force`.
     Probe {
+        trial: usize,
         contact: [f64; 2],
         axis: usize,
         force: [f64; 2],
@@ -406,14 +407,23 @@ impl Forward {
         p: &[f64],
         trial: &TrialContext,
     ) -> Vec<f64> {
-        let e0 = model.baseline(p).youngs_modulus;
         (0..body.centroids.len())
-            .map(|e| {
-                model.effects_with(p).fold(e0, |acc, (effect, own)| {
-                    acc * effect.stiffness_factor(own, trial, body.centroids[e], body.element_y[e])
-                })
-            })
+            .map(|e| Self::modulus(body, model, p, trial, e))
             .collect()
+    }
+
+    /// Modulus of element `e` of `body` in a trial.
+    fn modulus<const D: usize>(
+        body: &Body<D>,
+        model: &Model,
+        p: &[f64],
+        trial: &TrialContext,
+        e: usize,
+    ) -> f64 {
+        let e0 = model.baseline(p).youngs_modulus;
+        model.effects_with(p).fold(e0, |acc, (effect, own)| {
+            acc * effect.stiffness_factor(own, trial, body.centroids[e], body.element_y[e])
+        })
     }
 
     /// Shaft density $q(s) = (q_0 + \sum_k \Delta q_k(s)) \prod_k g_k(s)$
@@ -478,7 +488,10 @@ impl Forward {
     /// for needle columns, the entry offset $\delta$ times `weight` added to
     /// `out.entry_offsets[column]`; the neo-Hookean parts times `nonlinear`
     /// (not times `weight`) to `out.nonlinear`. The needle loads are placed
-    /// in `rounds` rounds from `start` (the spatial line if `None`).
+    /// in `rounds` rounds from `start` (the spatial line if `None`). The
+    /// columns' trials have the material field of `trial` up to a uniform
+    /// factor each, and share its factorisation; every round solves all
+    /// their needle loads at once.
     #[allow(clippy::too_many_arguments)]
     fn add_columns<const D: usize>(
         &self,
@@ -497,17 +510,25 @@ impl Forward {
     ) -> Result<Vec<Placement>, DiagnoseError> {
         let context = &obs.trials[trial];
         let moduli = Self::moduli(body, model, p, context);
-        let factorized = body.factorized(&moduli, model.baseline(p).poisson_ratio, supports)?;
+        let shared = body.factorized(&moduli, model.baseline(p).poisson_ratio, supports)?;
+        // The columns' trials have this one's field times a factor of
+        // their own (see `proportional`): its factorisation with their scale.
+        let scaled = |t: usize| Factorized {
+            entry: Arc::clone(&shared.entry),
+            scale: Self::modulus(body, model, p, &obs.trials[t], 0),
+        };
         let locator = body.locator();
         let mut needles = Vec::new();
         for (k, column) in columns.iter().enumerate() {
             match *column {
                 // All three come together from one tip (x first).
                 Column::Probe {
+                    trial,
                     contact,
                     axis: 0,
                     force,
                 } => {
+                    let factorized = scaled(trial);
                     let width = model.baseline(p).probe_width;
                     let responses = body.probe_responses(&locator, &factorized, contact, width)?;
                     for (axis, response) in responses.iter().enumerate() {
@@ -531,7 +552,8 @@ impl Forward {
                     let Load::Needle(shaft) = obs.frames[frame].load else {
                         unreachable!("needle columns are made from needle frames")
                     };
-                    needles.push((k, &obs.trials[obs.frames[frame].trial], shaft));
+                    let trial = obs.frames[frame].trial;
+                    needles.push((k, &obs.trials[trial], shaft, scaled(trial).scale));
                 }
             }
         }
@@ -544,7 +566,7 @@ impl Forward {
             Some(start) => start.to_vec(),
             None => needles
                 .iter()
-                .map(|(_, _, shaft)| Placement::spatial(shaft))
+                .map(|(_, _, shaft, _)| Placement::spatial(shaft))
                 .collect(),
         };
         let mut mixings: Vec<Mixing> = needles.iter().map(|_| Mixing::default()).collect();
@@ -552,7 +574,7 @@ impl Forward {
             let loads = needles
                 .iter()
                 .zip(&placements)
-                .map(|(&(_, trial, shaft), placement)| {
+                .map(|(&(_, trial, shaft, _), placement)| {
                     let length = placement.inserted_length(&shaft);
                     let density =
                         move |s: f64| self.density(model, p, trial, ShaftPoint { s, length });
@@ -566,19 +588,19 @@ impl Forward {
                 })
                 .collect::<Result<Vec<_>, _>>()?;
             let refs: Vec<&[f64]> = loads.iter().map(|l| l.as_slice()).collect();
-            let solutions = factorized.entry.problem.displacements_many(&refs)?;
+            let solutions = shared.entry.problem.displacements_many(&refs)?;
             if round < rounds {
                 placements = needles
                     .iter()
                     .zip(&placements)
                     .zip(&solutions)
                     .zip(&mut mixings)
-                    .map(|(((&(_, _, shaft), placement), u), mixing)| {
+                    .map(|(((&(_, _, shaft, scale), placement), u), mixing)| {
                         let displacement = |xy: [f64; 2]| {
                             body.needle_drag(
                                 &locator,
                                 u,
-                                factorized.scale,
+                                scale,
                                 xy,
                                 shaft.direction,
                                 self.needle_radius,
@@ -590,11 +612,10 @@ impl Forward {
                     .collect::<Result<_, _>>()?;
                 continue;
             }
-            for ((u, &(k, _, _)), placement) in solutions.iter().zip(&needles).zip(&placements) {
-                for (value, d) in out.displacement[k]
-                    .iter_mut()
-                    .zip(body.markers(u, factorized.scale))
-                {
+            for ((u, &(k, _, _, scale)), placement) in
+                solutions.iter().zip(&needles).zip(&placements)
+            {
+                for (value, d) in out.displacement[k].iter_mut().zip(body.markers(u, scale)) {
                     value[0] += weight * d[0];
                     value[1] += weight * d[1];
                 }
@@ -602,11 +623,11 @@ impl Forward {
             }
             if nonlinear != 0.0 {
                 let refs: Vec<&[f64]> = solutions.iter().map(|u| u.as_slice()).collect();
-                let terms = body.nonlinear_terms(&factorized, &refs)?;
-                // The terms come as c^2 u_2 and c^3 u_3 (see `series`).
-                let c = factorized.scale;
+                let terms = body.nonlinear_terms(&shared, &refs)?;
+                // The terms come as c^2 u_2 and c^3 u_3 (see `series`), c
+                // the trial's scale.
                 let w = nonlinear;
-                for ((terms, &(k, _, shaft)), placement) in
+                for ((terms, &(k, _, shaft, c)), placement) in
                     terms.iter().zip(&needles).zip(&placements)
                 {
                     let d = shaft.direction;
@@ -668,7 +689,9 @@ impl Forward {
             frame_offset.push(offset);
             offset += 2 * frame.markers.len();
         }
-        // Group trials by material field (the plane body's stands for both).
+        // Group trials whose material fields differ by a uniform factor
+        // (the plane body's stand for both): they share one factorisation
+        // (see `Body::factorized`), and their loads are solved together.
         let moduli: Vec<Vec<f64>> = obs
             .trials
             .iter()
@@ -682,7 +705,7 @@ impl Forward {
                 continue;
             }
             let group: Vec<usize> = (first..obs.trials.len())
-                .filter(|&t| !done[t] && moduli[t] == moduli[first])
+                .filter(|&t| !done[t] && proportional(&moduli[t], &moduli[first]))
                 .collect();
             for &t in &group {
                 done[t] = true;
@@ -699,6 +722,7 @@ impl Forward {
                     Load::Probe { contact, force, .. } => {
                         for axis in 0..3 {
                             columns.push(Column::Probe {
+                                trial: obs.frames[f].trial,
                                 contact,
                                 axis,
                                 force,
@@ -860,6 +884,19 @@ impl Forward {
     }
 }
 
+/// Whether two material fields differ by a uniform factor, to rounding:
+/// the grouping must not hinge on the last bit of a ratio, or a
+/// finite-difference step could regroup the trials.
+fn proportional(a: &[f64], b: &[f64]) -> bool {
+    let (Some(&a0), Some(&b0)) = (a.first(), b.first()) else {
+        return a.len() == b.len();
+    };
+    a.len() == b.len()
+        && a.iter()
+            .zip(b)
+            .all(|(x, y)| ((x / a0) - (y / b0)).abs() <= 1e-12 * (y / b0).abs())
+}
+
 /// The entry offset per unit length at `length`, interpolated linearly in
 /// the `(length, ratio)` table of a trial's frames (sorted by length), held
 /// constant beyond its ends; 0 for a trial without needle frames. The
@@ -896,6 +933,15 @@ mod tests {
     /// A small campaign: one probe frame and one needle frame on a 5 x 5
     /// marker grid (positions are irrelevant: only predictions are compared).
     fn observations() -> Observations {
+        observations_of(&[
+            ("probe", TrialKind::Probe, 2.0, 0.0),
+            ("needle", TrialKind::Needle, 3.0, 0.04),
+        ])
+    }
+
+    /// A campaign of one frame per trial `(id, kind, day, tip y)` on the
+    /// grid of [`observations`].
+    fn observations_of(trials: &[(&str, TrialKind, f64, f64)]) -> Observations {
         let mut builder = BundleBuilder::new(
             "tiny",
             Phantom {
@@ -923,10 +969,7 @@ mod tests {
             .enumerate()
             .map(|(id, p)| (id as u32, *p))
             .collect();
-        for (id, kind, day, tip_y) in [
-            ("probe", TrialKind::Probe, 2.0, 0.0),
-            ("needle", TrialKind::Needle, 3.0, 0.04),
-        ] {
+        for &(id, kind, day, tip_y) in trials {
             let trial = builder.trial(Trial {
                 id: id.into(),
                 kind,
@@ -1065,6 +1108,50 @@ mod tests {
                 "{} changes nothing off its null ({change})",
                 effect.id()
             );
+        }
+    }
+
+    #[test]
+    fn trials_that_differ_by_a_stiffening_are_solved_together_as_each_alone() {
+        // Days 2 and 3 stiffen the phantom by different uniform factors, so
+        // the two trials share one factorisation and one solve; each alone
+        // has its own.
+        let (both, forward, start) = paper_forward();
+        let ids = [
+            "material_stiffening",
+            "out_of_plane",
+            "material_nonlinearity",
+        ];
+        let model = with_effects(&forward, start, &ids);
+        let p = [25.0e3, 0.45, 10.0, 0.002, 0.05, 0.6, 0.5];
+        let whole = forward.predict(&model, &p, &both).unwrap();
+        let probe = observations_of(&[("probe", TrialKind::Probe, 2.0, 0.0)]);
+        let needle = observations_of(&[("needle", TrialKind::Needle, 3.0, 0.04)]);
+        let alone: Vec<f64> = [&probe, &needle]
+            .iter()
+            .flat_map(|obs| {
+                let values = forward.predict(&model, &p, obs).unwrap().values;
+                values[..obs.marker_count()].to_vec()
+            })
+            .chain({
+                let values = forward.predict(&model, &p, &needle).unwrap().values;
+                values[needle.marker_count()..].to_vec()
+            })
+            .collect();
+        assert_eq!(whole.values.len(), alone.len());
+        let largest = whole.values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        assert!(largest > 1e-5);
+        for (a, b) in whole.values.iter().zip(&alone) {
+            assert!((a - b).abs() <= 1e-10 * largest, "{a} vs {b}");
+        }
+        let response = |obs: &Observations| forward.predict(&model, &p, obs).unwrap();
+        assert_eq!(whole.probe_responses.len(), 1);
+        let (together, apart) = (
+            &whole.probe_responses[0],
+            &response(&probe).probe_responses[0],
+        );
+        for (a, b) in together.unit_x.iter().zip(&apart.unit_x) {
+            assert!((a - b).abs() <= 1e-10 * a.abs().max(1e-12), "{a} vs {b}");
         }
     }
 

@@ -409,17 +409,24 @@ impl<const D: usize> LinearProblem<D> {
 /// make poor use of the blocked kernels. A judgement, not a tuned value.
 const MIN_COLUMNS_PER_THREAD: usize = 4;
 
-/// Solves $LL^T X = B$ in place, the columns of `rhs` split into one
-/// block per rayon thread (at least [`MIN_COLUMNS_PER_THREAD`] each). The
-/// solve of one column never reads another, so the blocks are
-/// independent. Callers that are already parallel (finite-difference
-/// columns, candidate refits) keep every core busy, and the blocks then
-/// run one after another on the same thread; callers that are not (a
-/// fit's trial point, one factorisation's many loads) get the other cores
-/// even where faer's own parallelism is off (the diagnosis turns it off:
-/// inside parallel fits it cost CPU time).
+/// Solves $LL^T X = B$ in place. Called from outside the rayon pool (a
+/// fit's trial point, one factorisation's many loads), whose threads then
+/// have nothing else to do, the columns of `rhs` are split into one block
+/// per thread (at least [`MIN_COLUMNS_PER_THREAD`] each); the solve of one
+/// column never reads another, so the blocks are independent, and they get
+/// the other cores even where faer's own parallelism is off (the diagnosis
+/// turns it off: inside parallel fits it cost CPU time). Called from a
+/// thread of the pool (finite-difference columns, candidate refits), the
+/// caller is parallel already and the columns are solved as one block:
+/// each block is a pass over the whole factor, and wider blocks use the
+/// kernels better (the default diagnosis took about a fifth less CPU time
+/// than with blocks split on every call; `docs/benchmarks.md`, session 16).
 fn solve_split(factor: &Llt<usize, f64>, rhs: MatMut<'_, f64>) {
-    let blocks = rayon::current_num_threads().min(rhs.ncols() / MIN_COLUMNS_PER_THREAD);
+    let threads = match rayon::current_thread_index() {
+        Some(_) => 1,
+        None => rayon::current_num_threads(),
+    };
+    let blocks = threads.min(rhs.ncols() / MIN_COLUMNS_PER_THREAD);
     solve_blocks(factor, rhs, blocks.max(1));
 }
 
