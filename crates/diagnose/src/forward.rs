@@ -1127,29 +1127,22 @@ mod tests {
         let whole = forward.predict(&model, &p, &both).unwrap();
         let probe = observations_of(&[("probe", TrialKind::Probe, 2.0, 0.0)]);
         let needle = observations_of(&[("needle", TrialKind::Needle, 3.0, 0.04)]);
-        let alone: Vec<f64> = [&probe, &needle]
-            .iter()
-            .flat_map(|obs| {
-                let values = forward.predict(&model, &p, obs).unwrap().values;
-                values[..obs.marker_count()].to_vec()
-            })
-            .chain({
-                let values = forward.predict(&model, &p, &needle).unwrap().values;
-                values[needle.marker_count()..].to_vec()
-            })
-            .collect();
+        let probe_alone = forward.predict(&model, &p, &probe).unwrap();
+        let needle_alone = forward.predict(&model, &p, &needle).unwrap();
+        // Markers of the probe frame, of the needle frame, then the needle's forces.
+        let alone: Vec<f64> = [
+            &probe_alone.values[..probe.marker_count()],
+            &needle_alone.values[..],
+        ]
+        .concat();
         assert_eq!(whole.values.len(), alone.len());
         let largest = whole.values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         assert!(largest > 1e-5);
         for (a, b) in whole.values.iter().zip(&alone) {
             assert!((a - b).abs() <= 1e-10 * largest, "{a} vs {b}");
         }
-        let response = |obs: &Observations| forward.predict(&model, &p, obs).unwrap();
         assert_eq!(whole.probe_responses.len(), 1);
-        let (together, apart) = (
-            &whole.probe_responses[0],
-            &response(&probe).probe_responses[0],
-        );
+        let (together, apart) = (&whole.probe_responses[0], &probe_alone.probe_responses[0]);
         for (a, b) in together.unit_x.iter().zip(&apart.unit_x) {
             assert!((a - b).abs() <= 1e-10 * a.abs().max(1e-12), "{a} vs {b}");
         }
