@@ -512,11 +512,8 @@ impl Forward {
         let moduli = Self::moduli(body, model, p, context);
         let shared = body.factorized(&moduli, model.baseline(p).poisson_ratio, supports)?;
         // The columns' trials have this one's field times a factor of
-        // their own (see `proportional`): its factorisation with their scale.
-        let scaled = |t: usize| Factorized {
-            entry: Arc::clone(&shared.entry),
-            scale: Self::modulus(body, model, p, &obs.trials[t], 0),
-        };
+        // their own (see `proportional`): its factorisation, their scale.
+        let scale_of = |t: usize| Self::modulus(body, model, p, &obs.trials[t], 0);
         let locator = body.locator();
         let mut needles = Vec::new();
         for (k, column) in columns.iter().enumerate() {
@@ -528,7 +525,10 @@ impl Forward {
                     axis: 0,
                     force,
                 } => {
-                    let factorized = scaled(trial);
+                    let factorized = Factorized {
+                        entry: Arc::clone(&shared.entry),
+                        scale: scale_of(trial),
+                    };
                     let width = model.baseline(p).probe_width;
                     let responses = body.probe_responses(&locator, &factorized, contact, width)?;
                     for (axis, response) in responses.iter().enumerate() {
@@ -553,7 +553,7 @@ impl Forward {
                         unreachable!("needle columns are made from needle frames")
                     };
                     let trial = obs.frames[frame].trial;
-                    needles.push((k, &obs.trials[trial], shaft, scaled(trial).scale));
+                    needles.push((k, &obs.trials[trial], shaft, scale_of(trial)));
                 }
             }
         }
