@@ -202,7 +202,9 @@ pub(crate) enum Precision {
     /// The columns' derivative is within 1% of the model's, which can stop
     /// a fit a little earlier still: on the quick campaign the ladder's
     /// chi2/dof moved by at most 1e-4 relative when model fits used them
-    /// too, so those keep the model's own differences.
+    /// too, so those keep the model's own differences. Only the refit's
+    /// misfit and parameters are used, so it takes no Jacobian at its
+    /// optimum for a covariance ([`needle_lsq::Options::uncertainty`]).
     Candidate,
 }
 
@@ -239,6 +241,7 @@ pub(crate) fn fit_model(
     engine.options.step_tolerance = tolerance;
     engine.options.gradient_tolerance = tolerance;
     engine.options.max_evaluations = 300;
+    engine.options.uncertainty = precision == Precision::Model;
     let report = engine.minimize(&problem, &parameters)?;
     let params: Vec<f64> = report.params.iter().copied().collect();
     let residuals = context.residuals(model, &params)?;

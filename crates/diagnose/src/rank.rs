@@ -258,8 +258,11 @@ pub(crate) fn rank_candidates(
     naming_ratio: f64,
 ) -> Result<Vec<Ranked>, DiagnoseError> {
     let shared = CurrentJacobian::new(context, current, fitted)?;
+    // Candidates are scored side by side: each has only its one or two
+    // tested columns to run in parallel, and some solve bodies of their
+    // own (springs, the whole slab under a foundation).
     let mut scored = crate::effect::catalog()
-        .into_iter()
+        .into_par_iter()
         .filter(|effect| !current.spec.effects.iter().any(|id| id == effect.id()))
         .map(|effect| -> Result<_, DiagnoseError> {
             let spec = current.spec.with(effect.id());

@@ -51,7 +51,9 @@
 //! SVD of the column-equilibrated `R`, so a rank-deficient fit is detected:
 //! its unidentifiable parameters are listed and get no standard error
 //! instead of an infinite or arbitrary one ([`Uncertainty`]). Wald
-//! intervals are `p̂_k ± z_{(1+α)/2} sqrt(C_kk)`.
+//! intervals are `p̂_k ± z_{(1+α)/2} sqrt(C_kk)`. A fit whose optimum
+//! alone is wanted may skip the Jacobian that a stop after an accepted
+//! step takes for it ([`Options::uncertainty`]).
 //!
 //! ## Profile likelihood
 //!

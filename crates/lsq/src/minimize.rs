@@ -10,7 +10,7 @@ use crate::parameter::Parameter;
 use crate::problem::Problem;
 use crate::report::{Evaluations, FitReport, Termination};
 use crate::transform::Transform;
-use crate::uncertainty::{AtOptimum, CovarianceScaling, estimate};
+use crate::uncertainty::{AtOptimum, CovarianceScaling, Uncertainty, estimate};
 
 /// Stopping rules and numerical choices of [`LevenbergMarquardt`].
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -38,6 +38,16 @@ pub struct Options {
     /// A parameter within this fraction of its scale (or of its interval
     /// width) from a bound is reported as on the bound.
     pub bound_tolerance: f64,
+    /// Whether the report carries the covariance at the optimum. A stop
+    /// right after an accepted step then takes one more Jacobian, at the
+    /// accepted point: as costly as one residual evaluation per free
+    /// parameter when differenced. Off, that Jacobian is skipped and such a
+    /// stop reports [`ParameterStatus::NotComputed`](crate::ParameterStatus)
+    /// for every free parameter and a `gradient_norm` of NaN; a stop on a
+    /// rejected step still has its Jacobian at the optimum and reports both.
+    /// For fits whose optimum alone is wanted. Absent from a file, on.
+    #[serde(default = "on")]
+    pub uncertainty: bool,
 }
 
 impl Default for Options {
@@ -52,8 +62,13 @@ impl Default for Options {
             covariance_scaling: CovarianceScaling::KnownNoise,
             rank_tolerance: 1e-7,
             bound_tolerance: 1e-6,
+            uncertainty: true,
         }
     }
+}
+
+fn on() -> bool {
+    true
 }
 
 impl Options {
@@ -246,11 +261,12 @@ impl LevenbergMarquardt {
         let mut iterations = 0;
         let mut trial_r = vec![0.0; m];
 
-        let (termination, factored) = 'outer: loop {
+        // `factored` is the Jacobian at the optimum unless `false` here.
+        let (termination, factored, at_optimum) = 'outer: loop {
             let factored = self.factor(problem, &coordinates, &u, &p, &r, &mut evaluations)?;
             iterations += 1;
             if cost == 0.0 {
-                break (Termination::ZeroCost, factored);
+                break (Termination::ZeroCost, factored, true);
             }
             for (d, &norm) in scaling.iter_mut().zip(&factored.column_norms) {
                 *d = d.max(norm);
@@ -276,7 +292,7 @@ impl LevenbergMarquardt {
                 .map(|(g, norm)| g.abs() / (norm * residual_norm))
                 .fold(0.0, f64::max);
             if scaled_gradient <= options.gradient_tolerance {
-                break (Termination::Gradient, factored);
+                break (Termination::Gradient, factored, true);
             }
 
             loop {
@@ -351,12 +367,12 @@ impl LevenbergMarquardt {
                     None
                 };
                 if let Some(termination) = stop {
-                    if accepted {
+                    if accepted && options.uncertainty {
                         let factored =
                             self.factor(problem, &coordinates, &u, &p, &r, &mut evaluations)?;
-                        break 'outer (termination, factored);
+                        break 'outer (termination, factored, true);
                     }
-                    break 'outer (termination, factored);
+                    break 'outer (termination, factored, !accepted);
                 }
                 if accepted {
                     break;
@@ -373,19 +389,25 @@ impl LevenbergMarquardt {
             .collect();
         let chi2 = 2.0 * cost;
         let dof = m.saturating_sub(k);
-        let uncertainty = estimate(
-            &AtOptimum {
-                r_factor: &factored.r_factor,
-                derivatives: &derivatives,
-                free: &coordinates.free,
-                at_bound: &at_bound,
-                total: parameters.len(),
-                dof,
-                chi2,
-            },
-            options.covariance_scaling,
-            options.rank_tolerance,
-        );
+        let (uncertainty, gradient_norm) = if at_optimum {
+            let uncertainty = estimate(
+                &AtOptimum {
+                    r_factor: &factored.r_factor,
+                    derivatives: &derivatives,
+                    free: &coordinates.free,
+                    at_bound: &at_bound,
+                    total: parameters.len(),
+                    dof,
+                    chi2,
+                },
+                options.covariance_scaling,
+                options.rank_tolerance,
+            );
+            (uncertainty, factored.gradient.amax())
+        } else {
+            let uncertainty = Uncertainty::not_computed(&coordinates.free, parameters.len());
+            (uncertainty, f64::NAN)
+        };
         Ok(FitReport {
             names: parameters.iter().map(|p| p.name.clone()).collect(),
             params: DVector::from_vec(p),
@@ -395,7 +417,7 @@ impl LevenbergMarquardt {
             iterations,
             evaluations,
             termination,
-            gradient_norm: factored.gradient.amax(),
+            gradient_norm,
             uncertainty,
         })
     }

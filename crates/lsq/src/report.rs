@@ -69,7 +69,9 @@ pub struct FitReport {
     pub termination: Termination,
     /// `max_j |∂cost/∂u_j|` at the optimum, in the internal coordinates
     /// (see [`transform`](crate::transform)), whose unit is the parameter
-    /// scale; zero at an interior optimum and at a bound alike.
+    /// scale; zero at an interior optimum and at a bound alike. NaN when the
+    /// fit stopped without a Jacobian at the optimum (see
+    /// [`Options::uncertainty`](crate::Options::uncertainty)).
     pub gradient_norm: f64,
     /// Covariance, standard errors, identifiability.
     pub uncertainty: Uncertainty,

@@ -35,6 +35,9 @@ pub enum ParameterStatus {
     Unidentifiable,
     /// Covariance scaled by `χ²/dof` was asked for with `dof = 0`.
     NoDegreesOfFreedom,
+    /// Free, but the fit stopped without a Jacobian at its optimum
+    /// ([`Options::uncertainty`](crate::Options::uncertainty) off).
+    NotComputed,
 }
 
 /// How the covariance `(Jᵀ J)⁻¹` is scaled.
@@ -90,6 +93,29 @@ impl Uncertainty {
         (0..self.status.len())
             .filter(|&j| self.status[j] == status)
             .collect()
+    }
+}
+
+impl Uncertainty {
+    /// No analysis: `free` parameters [`ParameterStatus::NotComputed`], the
+    /// others [`ParameterStatus::Fixed`], of `total`; no covariance, rank 0
+    /// of 0 columns, condition number NaN.
+    pub(crate) fn not_computed(free: &[usize], total: usize) -> Self {
+        let mut status = vec![ParameterStatus::Fixed; total];
+        for &j in free {
+            status[j] = ParameterStatus::NotComputed;
+        }
+        Self {
+            status,
+            standard_errors: vec![None; total],
+            estimated: Vec::new(),
+            covariance: DMatrix::zeros(0, 0),
+            correlation: DMatrix::zeros(0, 0),
+            covariance_scale: None,
+            rank: 0,
+            columns: 0,
+            condition_number: f64::NAN,
+        }
     }
 }
 

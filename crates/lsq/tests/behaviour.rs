@@ -500,3 +500,60 @@ fn a_fit_through_a_near_map_reaches_the_converged_maps_minimum() {
     }
     assert!((near.chi2 - converged.chi2).abs() < 1e-9 * converged.chi2);
 }
+
+#[test]
+fn without_uncertainty_the_same_optimum_costs_one_jacobian_fewer() {
+    let without = LevenbergMarquardt::new(needle_lsq::Options {
+        uncertainty: false,
+        ..Default::default()
+    });
+    let mut skipped = 0;
+    for problem in mgh::ALL.map(mgh::Mgh::numerical) {
+        let parameters = problem.parameters();
+        let full = LevenbergMarquardt::default()
+            .minimize(&problem, &parameters)
+            .unwrap();
+        let lean = without.minimize(&problem, &parameters).unwrap();
+        let name = problem.name;
+        // The final Jacobian steers nothing: the same steps, to the bit.
+        assert_eq!(lean.params, full.params, "{name}");
+        assert_eq!(lean.termination, full.termination, "{name}");
+        assert_eq!(lean.iterations, full.iterations, "{name}");
+        let spared = full.evaluations.jacobians - lean.evaluations.jacobians;
+        let columns = parameters.len();
+        assert_eq!(
+            full.evaluations.finite_difference_residuals
+                - lean.evaluations.finite_difference_residuals,
+            spared * columns,
+            "{name}"
+        );
+        if spared == 1 {
+            skipped += 1;
+            assert!(lean.gradient_norm.is_nan(), "{name}");
+            assert!(
+                lean.uncertainty
+                    .status
+                    .iter()
+                    .all(|&s| s == ParameterStatus::NotComputed),
+                "{name}"
+            );
+            assert!(lean.standard_error(0).is_none(), "{name}");
+        } else {
+            // Stopped on a rejected step: its Jacobian is the optimum's.
+            assert_eq!(spared, 0, "{name}");
+            assert_eq!(lean.gradient_norm, full.gradient_norm, "{name}");
+            assert_eq!(lean.uncertainty.status, full.uncertainty.status, "{name}");
+        }
+        assert!(
+            full.uncertainty
+                .status
+                .iter()
+                .all(|&s| s != ParameterStatus::NotComputed),
+            "{name}"
+        );
+    }
+    assert!(
+        skipped > 0,
+        "no problem stopped right after an accepted step"
+    );
+}
