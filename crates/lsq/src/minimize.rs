@@ -46,7 +46,7 @@ pub struct Options {
     /// for every free parameter and a `gradient_norm` of NaN; a stop on a
     /// rejected step still has its Jacobian at the optimum and reports both.
     /// For fits whose optimum alone is wanted. Absent from a file, on.
-    #[serde(default = "on")]
+    #[serde(default = "uncertainty_by_default")]
     pub uncertainty: bool,
 }
 
@@ -67,7 +67,7 @@ impl Default for Options {
     }
 }
 
-fn on() -> bool {
+fn uncertainty_by_default() -> bool {
     true
 }
 

@@ -88,15 +88,6 @@ impl Uncertainty {
         self.indices_with(ParameterStatus::Unidentifiable)
     }
 
-    /// Indices of the parameters with a given status.
-    pub fn indices_with(&self, status: ParameterStatus) -> Vec<usize> {
-        (0..self.status.len())
-            .filter(|&j| self.status[j] == status)
-            .collect()
-    }
-}
-
-impl Uncertainty {
     /// No analysis: `free` parameters [`ParameterStatus::NotComputed`], the
     /// others [`ParameterStatus::Fixed`], of `total`; no covariance, rank 0
     /// of 0 columns, condition number NaN.
@@ -116,6 +107,13 @@ impl Uncertainty {
             columns: 0,
             condition_number: f64::NAN,
         }
+    }
+
+    /// Indices of the parameters with a given status.
+    pub fn indices_with(&self, status: ParameterStatus) -> Vec<usize> {
+        (0..self.status.len())
+            .filter(|&j| self.status[j] == status)
+            .collect()
     }
 }
 

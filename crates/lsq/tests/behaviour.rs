@@ -557,3 +557,13 @@ fn without_uncertainty_the_same_optimum_costs_one_jacobian_fewer() {
         "no problem stopped right after an accepted step"
     );
 }
+
+#[test]
+fn options_written_before_the_uncertainty_switch_still_read_with_it_on() {
+    let mut text = ron::to_string(&needle_lsq::Options::default()).unwrap();
+    let field = ",uncertainty:true";
+    assert!(text.contains(field), "{text}");
+    text = text.replace(field, "");
+    let read: needle_lsq::Options = ron::from_str(&text).unwrap();
+    assert_eq!(read, needle_lsq::Options::default());
+}
