@@ -2,7 +2,8 @@
 //!
 //! A uniform bucket grid over the mesh's bounding box lists, per cell, the
 //! elements whose bounding boxes overlap it; a query tests only those
-//! elements. Inside an element the reference coordinates $\xi$ come from the
+//! elements, each with the inverse of its corner Jacobian made once when
+//! the locator is built. Inside an element the reference coordinates $\xi$ come from the
 //! corner (barycentric) coordinates, which is exact for straight-sided
 //! elements (all meshes built by this crate; curved isoparametric elements
 //! are not supported by the locator). A field is then interpolated as
@@ -44,6 +45,11 @@ pub struct Locator<'a, const D: usize> {
     /// CSR of grid cell to candidate elements.
     offsets: Vec<usize>,
     elements: Vec<usize>,
+    /// Per element, its first corner $x_0$ and the inverse of its corner
+    /// Jacobian (`None` if degenerate): made once, since a query tests
+    /// several elements and a needle's placement makes thousands of
+    /// queries on one locator.
+    maps: Vec<([f64; D], Option<SMatrix<f64, D, D>>)>,
     tolerance: f64,
 }
 
@@ -92,6 +98,16 @@ impl<'a, const D: usize> Locator<'a, D> {
             offsets.push(offsets.last().unwrap_or(&0) + list.len());
         }
         let elements = lists.into_iter().flatten().collect();
+        let maps = (0..mesh.element_count())
+            .map(|e| {
+                let nodes = mesh.element(e);
+                let x0 = mesh.node(nodes[0]);
+                let jacobian =
+                    SMatrix::<f64, D, D>::from_fn(|i, j| mesh.node(nodes[j + 1])[i] - x0[i]);
+                let (determinant, inverse) = determinant_and_inverse(&jacobian);
+                (x0, (determinant != 0.0).then_some(inverse))
+            })
+            .collect();
         Self {
             mesh,
             origin: lo,
@@ -99,6 +115,7 @@ impl<'a, const D: usize> Locator<'a, D> {
             cells,
             offsets,
             elements,
+            maps,
             tolerance: 1e-9,
         }
     }
@@ -129,16 +146,11 @@ impl<'a, const D: usize> Locator<'a, D> {
     /// Barycentric coordinates $[L_0..L_D]$ of `point` in element `e`
     /// (from its corners).
     pub fn barycentric(&self, e: usize, point: [f64; D]) -> [f64; 4] {
-        let nodes = self.mesh.element(e);
-        let x0 = self.mesh.node(nodes[0]);
-        let jacobian =
-            SMatrix::<f64, D, D>::from_fn(|i, j| self.mesh.node(nodes[j + 1])[i] - x0[i]);
+        let (x0, inverse) = &self.maps[e];
         let rhs = SVector::<f64, D>::from_fn(|i, _| point[i] - x0[i]);
-        let (determinant, inverse) = determinant_and_inverse(&jacobian);
-        let xi = if determinant != 0.0 {
-            inverse * rhs
-        } else {
-            SVector::from_element(f64::NAN)
+        let xi = match inverse {
+            Some(inverse) => inverse * rhs,
+            None => SVector::from_element(f64::NAN),
         };
         shape::barycentric(&xi)
     }
@@ -149,8 +161,15 @@ impl<'a, const D: usize> Locator<'a, D> {
         if point.iter().any(|x| !x.is_finite()) {
             return None;
         }
+        // A point lies in one grid cell, whose list is sorted and unique:
+        // the candidates of the box [point, point] without building them.
+        let mut index = [0; D];
+        for i in 0..D {
+            index[i] = cell_index(point[i], self.origin[i], self.cell_size[i], self.cells[i]);
+        }
+        let c = flat(&index, &self.cells);
         let mut best: Option<(f64, usize, [f64; 4])> = None;
-        for e in self.candidates(point, point) {
+        for &e in &self.elements[self.offsets[c]..self.offsets[c + 1]] {
             let l = self.barycentric(e, point);
             let worst = l[..=D].iter().copied().fold(f64::INFINITY, f64::min);
             if worst.is_finite() && best.is_none_or(|(w, _, _)| worst > w) {
