@@ -3,10 +3,11 @@
 //! A uniform bucket grid over the mesh's bounding box lists, per cell, the
 //! elements whose bounding boxes overlap it; a query tests only those
 //! elements, each with the inverse of its corner Jacobian made once when
-//! the locator is built. Inside an element the reference coordinates $\xi$ come from the
-//! corner (barycentric) coordinates, which is exact for straight-sided
-//! elements (all meshes built by this crate; curved isoparametric elements
-//! are not supported by the locator). A field is then interpolated as
+//! the locator is built. Inside an element the reference coordinates
+//! $\xi$ come from the corner (barycentric) coordinates, which is exact
+//! for straight-sided elements (all meshes built by this crate; curved
+//! isoparametric elements are not supported by the locator). A field is
+//! then interpolated as
 //! $u(x) = \sum_a N_a(\xi)\,u_a$, and these weights form a sparse linear
 //! operator $H$ with $u(\text{markers}) = H u$: the "displacement at the
 //! markers" map used in least squares.
