@@ -128,12 +128,7 @@ impl<'a, const D: usize> Locator<'a, D> {
 
     /// Candidate elements whose bounding boxes overlap the box `[lo, hi]`.
     pub fn candidates(&self, lo: [f64; D], hi: [f64; D]) -> Vec<usize> {
-        let mut low = [0; D];
-        let mut high = [0; D];
-        for i in 0..D {
-            low[i] = cell_index(lo[i], self.origin[i], self.cell_size[i], self.cells[i]);
-            high[i] = cell_index(hi[i], self.origin[i], self.cell_size[i], self.cells[i]);
-        }
+        let (low, high) = (self.cell_of(lo), self.cell_of(hi));
         let mut out = Vec::new();
         for_each_cell(&low, &high, |cell| {
             let c = flat(&cell, &self.cells);
@@ -142,6 +137,15 @@ impl<'a, const D: usize> Locator<'a, D> {
         out.sort_unstable();
         out.dedup();
         out
+    }
+
+    /// The grid cell holding `point` (clamped to the grid).
+    fn cell_of(&self, point: [f64; D]) -> [usize; D] {
+        let mut cell = [0; D];
+        for i in 0..D {
+            cell[i] = cell_index(point[i], self.origin[i], self.cell_size[i], self.cells[i]);
+        }
+        cell
     }
 
     /// Barycentric coordinates $[L_0..L_D]$ of `point` in element `e`
@@ -164,11 +168,7 @@ impl<'a, const D: usize> Locator<'a, D> {
         }
         // A point lies in one grid cell, whose list is sorted and unique:
         // the candidates of the box [point, point] without building them.
-        let mut index = [0; D];
-        for i in 0..D {
-            index[i] = cell_index(point[i], self.origin[i], self.cell_size[i], self.cells[i]);
-        }
-        let c = flat(&index, &self.cells);
+        let c = flat(&self.cell_of(point), &self.cells);
         let mut best: Option<(f64, usize, [f64; 4])> = None;
         for &e in &self.elements[self.offsets[c]..self.offsets[c + 1]] {
             let l = self.barycentric(e, point);
