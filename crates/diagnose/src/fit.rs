@@ -38,11 +38,6 @@ pub(crate) struct Context {
 }
 
 impl Context {
-    /// Residuals model - data at `p`, not whitened.
-    pub fn residuals(&self, model: &Model, p: &[f64]) -> Result<Vec<f64>, DiagnoseError> {
-        Ok(self.evaluate(model, p, Start::Cold)?.0)
-    }
-
     /// Residuals model - data at `p` with the needle loads placed from
     /// `start`, not whitened, and where the loads ended up.
     pub fn evaluate(
@@ -87,13 +82,24 @@ pub(crate) struct Fitted {
     pub chi2: f64,
     /// Unwhitened residuals model - data.
     pub residuals: Vec<f64>,
+    /// Where the model placed the needle loads at `params`.
+    pub placements: Arc<Placements>,
     /// Degrees of freedom of each channel (marker, force).
     pub dof: [f64; 2],
 }
 
-/// How many evaluations' placements a fit keeps: the Jacobian is taken at
-/// the point last accepted, which is the last or next-to-last evaluated.
-const KEPT_PLACEMENTS: usize = 3;
+/// How many evaluations a fit keeps: the Jacobian is taken at the point
+/// last accepted, which is the last or next-to-last evaluated, and the fit
+/// ends at it.
+const KEPT_EVALUATIONS: usize = 3;
+
+/// One evaluation of the model proper: its parameters, its residuals
+/// (model - data, not whitened) and where it placed the needle loads.
+struct Evaluation {
+    params: Vec<f64>,
+    residuals: Vec<f64>,
+    placements: Arc<Placements>,
+}
 
 pub(crate) struct FitProblem<'a> {
     pub context: &'a Context,
@@ -101,8 +107,8 @@ pub(crate) struct FitProblem<'a> {
     /// Whether the Jacobian's columns start from the base point's
     /// placements.
     near: bool,
-    /// The placements of the last evaluations, by their parameters.
-    placements: Mutex<Vec<(Vec<f64>, Arc<Placements>)>>,
+    /// The last evaluations of the model proper.
+    evaluations: Mutex<Vec<Evaluation>>,
 }
 
 impl<'a> FitProblem<'a> {
@@ -111,29 +117,35 @@ impl<'a> FitProblem<'a> {
             context,
             model,
             near,
-            placements: Mutex::new(Vec::new()),
+            evaluations: Mutex::new(Vec::new()),
         }
     }
 
-    fn keep(&self, params: &[f64], placements: Placements) -> Arc<Placements> {
+    fn keep(&self, params: &[f64], residuals: Vec<f64>, placements: Placements) -> Arc<Placements> {
         let placements = Arc::new(placements);
-        let mut kept = self.placements.lock().unwrap_or_else(|e| e.into_inner());
-        if kept.len() == KEPT_PLACEMENTS {
+        let mut kept = self.evaluations.lock().unwrap_or_else(|e| e.into_inner());
+        if kept.len() == KEPT_EVALUATIONS {
             kept.remove(0);
         }
-        kept.push((params.to_vec(), Arc::clone(&placements)));
+        kept.push(Evaluation {
+            params: params.to_vec(),
+            residuals,
+            placements: Arc::clone(&placements),
+        });
         placements
     }
 
-    /// The placements of the model proper at `params`.
-    fn placements_at(&self, params: &[f64]) -> Result<Arc<Placements>, DiagnoseError> {
-        let kept = self.placements.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some((_, found)) = kept.iter().find(|(at, _)| at.as_slice() == params) {
-            return Ok(Arc::clone(found));
+    /// The residuals and placements of the model proper at `params`: kept
+    /// if evaluated lately, else evaluated (and kept).
+    fn evaluated_at(&self, params: &[f64]) -> Result<(Vec<f64>, Arc<Placements>), DiagnoseError> {
+        let kept = self.evaluations.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(found) = kept.iter().find(|e| e.params.as_slice() == params) {
+            return Ok((found.residuals.clone(), Arc::clone(&found.placements)));
         }
         drop(kept);
-        let (_, placements) = self.context.evaluate(self.model, params, Start::Cold)?;
-        Ok(self.keep(params, placements))
+        let (residuals, placements) = self.context.evaluate(self.model, params, Start::Cold)?;
+        let placements = self.keep(params, residuals.clone(), placements);
+        Ok((residuals, placements))
     }
 }
 
@@ -152,10 +164,8 @@ impl Problem for FitProblem<'_> {
         out: &mut [f64],
     ) -> Result<(), needle_lsq::EvaluationError> {
         let (residuals, placements) = self.context.evaluate(self.model, params, Start::Cold)?;
-        if self.near {
-            self.keep(params, placements);
-        }
         out.copy_from_slice(&self.context.whitening.apply(&residuals));
+        self.keep(params, residuals, placements);
         Ok(())
     }
 
@@ -173,7 +183,7 @@ impl Problem for FitProblem<'_> {
             return None;
         }
         let mut evaluate = || -> Result<(), DiagnoseError> {
-            let placements = self.placements_at(base)?;
+            let (_, placements) = self.evaluated_at(base)?;
             let whitened = self
                 .context
                 .whitened_near(self.model, &placements, params)?;
@@ -244,7 +254,8 @@ pub(crate) fn fit_model(
     engine.options.uncertainty = precision == Precision::Model;
     let report = engine.minimize(&problem, &parameters)?;
     let params: Vec<f64> = report.params.iter().copied().collect();
-    let residuals = context.residuals(model, &params)?;
+    // The fit ends at a point it evaluated.
+    let (residuals, placements) = problem.evaluated_at(&params)?;
     let free = parameters.iter().filter(|p| !p.fixed).count();
     let (fit, chi2, dof) = misfit(context, &residuals, free);
     Ok(Fitted {
@@ -253,6 +264,7 @@ pub(crate) fn fit_model(
         fit,
         chi2,
         residuals,
+        placements,
         dof,
     })
 }

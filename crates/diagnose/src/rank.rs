@@ -40,6 +40,8 @@
 //! $\chi^2_{k'}$, $k'$ all the effect's parameters. AIC $= \chi^2 + 2 n_p$
 //! and BIC $= \chi^2 + n_p \ln n$ are reported too.
 
+use std::sync::Arc;
+
 use nalgebra::DMatrix;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -47,7 +49,7 @@ use serde::{Deserialize, Serialize};
 use crate::chi2::chi2_upper_tail;
 use crate::error::DiagnoseError;
 use crate::fit::{Context, Fit, Fitted, Precision, fit_model};
-use crate::forward::{Placements, Start};
+use crate::forward::Placements;
 use crate::model::{Model, PROBE_WIDTH};
 use crate::spec::ModelSpec;
 
@@ -104,16 +106,16 @@ const REFIT_SCORE_FRACTION: f64 = 0.1;
 struct CurrentJacobian {
     residuals: Vec<f64>,
     columns: DMatrix<f64>,
-    placements: Placements,
+    placements: Arc<Placements>,
     near: Vec<f64>,
 }
 
 impl CurrentJacobian {
     fn new(context: &Context, current: &Model, fitted: &Fitted) -> Result<Self, DiagnoseError> {
         let at = &fitted.params;
-        let (residuals, placements) = context.evaluate(current, at, Start::Cold)?;
-        let residuals = context.whitening.apply(&residuals);
-        let near = context.whitened_near(current, &placements, at)?;
+        let residuals = context.whitening.apply(&fitted.residuals);
+        let placements = &fitted.placements;
+        let near = context.whitened_near(current, placements, at)?;
         let free: Vec<usize> = (0..current.len())
             .filter(|&k| {
                 fitted.report.uncertainty.status[k] == needle_lsq::ParameterStatus::Estimated
@@ -121,7 +123,7 @@ impl CurrentJacobian {
             .collect();
         let base = Base {
             at,
-            placements: &placements,
+            placements,
             residuals: &near,
         };
         let derivatives = free
@@ -132,7 +134,7 @@ impl CurrentJacobian {
         Ok(Self {
             residuals,
             columns,
-            placements,
+            placements: Arc::clone(placements),
             near,
         })
     }
