@@ -47,7 +47,6 @@ use std::time::Instant;
 
 use faer::Side;
 use faer::sparse::linalg::cholesky::factorize_symbolic_cholesky;
-use faer::sparse::linalg::solvers::Llt;
 use needle_fem::{
     Assembler, Dirichlet, ElementKind, Face, FemError, Formulation, LinearProblem, Material,
     Materials, RectangleMesh,
@@ -121,12 +120,8 @@ fn run(cells: usize) -> Result<Run, FemError> {
         .stiffness_into(&materials, &mut stiffness)?;
     let values = seconds(start);
     let start = Instant::now();
-    let factor = Llt::try_new_with_symbolic(
-        problem.symbolic_factorization().clone(),
-        problem.reduced_stiffness().as_ref(),
-        Side::Lower,
-    )
-    .map_err(|e| FemError::Factorization(format!("{e:?}")))?;
+    let mut factor = problem.new_factor();
+    factor.factorize(problem.reduced_stiffness().as_ref())?;
     let numeric = seconds(start);
     drop(factor);
     // The symbolic analysis alone (ordering and elimination tree, the same

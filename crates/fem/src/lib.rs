@@ -186,6 +186,6 @@ pub use mesh::{
     BoundaryFacet, Face, MarkerGrid, Mesh, Mesh2, Mesh3, QualityReport, RectangleMesh, SlabMesh,
 };
 pub use nonlinear_error::NonlinearError;
-pub use solve::{LinearProblem, Solution};
+pub use solve::{CholeskyFactor, LinearProblem, Solution};
 pub use solve_nonlinear::{HyperelasticProblem, NonlinearOptions, NonlinearSolution};
 pub use support::Support;

@@ -20,10 +20,12 @@
 //! no prescribed dof and no support resists makes $K_{ff}$ singular and is
 //! reported as [`FemError::Unconstrained`] rather than a garbage solution.
 
-use faer::linalg::solvers::Solve;
-use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
-use faer::sparse::{SparseColMat, SymbolicSparseColMat};
-use faer::{Mat, MatMut, Side};
+use std::sync::Arc;
+
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholesky, factorize_symbolic_cholesky};
+use faer::sparse::{SparseColMat, SparseColMatRef, SymbolicSparseColMat};
+use faer::{Conj, Mat, MatMut, Side};
 use nalgebra::DMatrix;
 
 use crate::assemble::{Assembler, multiply};
@@ -61,8 +63,101 @@ pub struct LinearProblem<const D: usize> {
     /// Lower triangle of $K_{ff}$ and, per entry, its position in `stiffness`.
     reduced: SparseColMat<usize, f64>,
     gather: Vec<usize>,
-    symbolic: SymbolicLlt<usize>,
-    factor: Option<Llt<usize, f64>>,
+    factor: CholeskyFactor,
+}
+
+/// A numeric Cholesky factor $K_{ff} = LL^T$ on a symbolic analysis that
+/// is computed once and shared by clones.
+///
+/// faer's `Llt` allocates its factor anew at every numeric factorisation;
+/// this keeps the values of $L$ in one vector that a factorisation on the
+/// same pattern overwrites. A problem factorised again with new materials
+/// then touches no fresh memory: on the default campaign's graded slab the
+/// factor is 74 MB, and the kernel's clearing of its new pages took about
+/// a fifth of each factorisation (`docs/benchmarks.md`, session 18). The
+/// arithmetic is faer's own (`factorize_numeric_llt`, `LltRef`), with the
+/// same defaults as `Llt`.
+#[derive(Debug, Clone)]
+pub struct CholeskyFactor {
+    symbolic: Arc<SymbolicCholesky<usize>>,
+    values: Vec<f64>,
+    factorized: bool,
+}
+
+impl CholeskyFactor {
+    /// An unfactorised factor on `symbolic`.
+    fn new(symbolic: Arc<SymbolicCholesky<usize>>) -> Self {
+        Self {
+            symbolic,
+            values: Vec::new(),
+            factorized: false,
+        }
+    }
+
+    /// The symbolic analysis (ordering, elimination tree, pattern of $L$).
+    pub fn symbolic(&self) -> &SymbolicCholesky<usize> {
+        &self.symbolic
+    }
+
+    /// Whether [`CholeskyFactor::factorize`] has succeeded since the last
+    /// change.
+    pub fn is_factorized(&self) -> bool {
+        self.factorized
+    }
+
+    /// Factorises `lower`, the lower triangle of a matrix with the pattern
+    /// of the symbolic analysis, reusing the storage of the last factor.
+    pub fn factorize(&mut self, lower: SparseColMatRef<'_, usize, f64>) -> Result<(), FemError> {
+        self.factorized = false;
+        let par = faer::get_global_parallelism();
+        // Zeroed as faer's `Llt` does for a fresh factor; the pages are the
+        // last factor's, so this costs no page faults.
+        self.values.clear();
+        self.values.resize(self.symbolic.len_val(), 0.0);
+        let mut scratch = MemBuffer::try_new(
+            self.symbolic
+                .factorize_numeric_llt_scratch::<f64>(par, Default::default()),
+        )
+        .map_err(|e| FemError::Factorization(format!("scratch: {e:?}")))?;
+        self.symbolic
+            .factorize_numeric_llt::<f64>(
+                &mut self.values,
+                lower,
+                Side::Lower,
+                Default::default(),
+                par,
+                MemStack::new(&mut scratch),
+                Default::default(),
+            )
+            .map_err(|e| FemError::Factorization(format!("{e:?}")))?;
+        self.factorized = true;
+        Ok(())
+    }
+
+    /// Solves $LL^T X = B$ in place, one right-hand side per column of `rhs`.
+    pub fn solve_in_place(&self, rhs: MatMut<'_, f64>) -> Result<(), FemError> {
+        if !self.factorized {
+            return Err(FemError::Factorization(
+                "factorize() has not succeeded yet".into(),
+            ));
+        }
+        self.solve_factorized(rhs);
+        Ok(())
+    }
+
+    fn solve_factorized(&self, rhs: MatMut<'_, f64>) {
+        let par = faer::get_global_parallelism();
+        let mut scratch = MemBuffer::new(
+            self.symbolic
+                .solve_in_place_scratch::<f64>(rhs.ncols(), par),
+        );
+        LltRef::new(&self.symbolic, &self.values).solve_in_place_with_conj(
+            Conj::No,
+            rhs,
+            par,
+            MemStack::new(&mut scratch),
+        );
+    }
 }
 
 impl<const D: usize> LinearProblem<D> {
@@ -129,8 +224,13 @@ impl<const D: usize> LinearProblem<D> {
         }
         let reduced_symbolic =
             SymbolicSparseColMat::new_checked(free.len(), free.len(), col_ptr, None, row_idx);
-        let symbolic = SymbolicLlt::try_new(reduced_symbolic.as_ref(), Side::Lower)
-            .map_err(|e| FemError::Factorization(format!("symbolic analysis: {e:?}")))?;
+        let symbolic = factorize_symbolic_cholesky(
+            reduced_symbolic.as_ref(),
+            Side::Lower,
+            Default::default(),
+            Default::default(),
+        )
+        .map_err(|e| FemError::Factorization(format!("symbolic analysis: {e:?}")))?;
         let reduced = SparseColMat::new(reduced_symbolic, vec![0.0; gather.len()]);
         Ok(Self {
             assembler,
@@ -142,16 +242,15 @@ impl<const D: usize> LinearProblem<D> {
             springs,
             reduced,
             gather,
-            symbolic,
-            factor: None,
+            factor: CholeskyFactor::new(Arc::new(symbolic)),
         })
     }
 
     /// Assembles $K(E,\nu)$ for `materials` (reusing storage and pattern),
     /// adds the supports, and computes the numeric Cholesky factor of
-    /// $K_{ff}$ reusing the symbolic analysis.
+    /// $K_{ff}$ reusing the symbolic analysis and the last factor's storage.
     pub fn factorize(&mut self, materials: &Materials) -> Result<(), FemError> {
-        self.factor = None;
+        self.factor.factorized = false;
         self.assembler
             .stiffness_into(materials, &mut self.stiffness)?;
         let values = self.stiffness.val_mut();
@@ -167,11 +266,7 @@ impl<const D: usize> LinearProblem<D> {
         if self.reduced.val().iter().any(|v| !v.is_finite()) {
             return Err(FemError::NonFinite("stiffness matrix"));
         }
-        let factor =
-            Llt::try_new_with_symbolic(self.symbolic.clone(), self.reduced.as_ref(), Side::Lower)
-                .map_err(|e| FemError::Factorization(format!("{e:?}")))?;
-        self.factor = Some(factor);
-        Ok(())
+        self.factor.factorize(self.reduced.as_ref())
     }
 
     /// The assembler (mesh, formulation, pattern).
@@ -224,7 +319,7 @@ impl<const D: usize> LinearProblem<D> {
             }
         }
         springs.1 *= factor;
-        self.factor = None;
+        self.factor.factorized = false;
         Ok(())
     }
 
@@ -259,15 +354,16 @@ impl<const D: usize> LinearProblem<D> {
         &self.reduced
     }
 
-    /// The Cholesky factor of $K_{ff}$ (after `factorize`). Solve with
-    /// `faer::linalg::solvers::Solve::solve_in_place`.
-    pub fn factorization(&self) -> Option<&Llt<usize, f64>> {
-        self.factor.as_ref()
+    /// The Cholesky factor of $K_{ff}$ (after `factorize`).
+    pub fn factorization(&self) -> Option<&CholeskyFactor> {
+        self.factor.is_factorized().then_some(&self.factor)
     }
 
-    /// The symbolic analysis of $K_{ff}$ (ordering, elimination tree).
-    pub fn symbolic_factorization(&self) -> &SymbolicLlt<usize> {
-        &self.symbolic
+    /// A new, unfactorised factor on the symbolic analysis of $K_{ff}$
+    /// (shared, not recomputed): for another matrix of the same pattern,
+    /// such as a tangent stiffness.
+    pub fn new_factor(&self) -> CholeskyFactor {
+        CholeskyFactor::new(Arc::clone(&self.factor.symbolic))
     }
 
     /// Free dofs in ascending order: row `k` of the reduced system is dof
@@ -284,9 +380,8 @@ impl<const D: usize> LinearProblem<D> {
             .filter(|&k| k != usize::MAX)
     }
 
-    fn factor(&self) -> Result<&Llt<usize, f64>, FemError> {
-        self.factor
-            .as_ref()
+    fn factor(&self) -> Result<&CholeskyFactor, FemError> {
+        self.factorization()
             .ok_or_else(|| FemError::Factorization("factorize() has not succeeded yet".into()))
     }
 
@@ -421,7 +516,7 @@ const MIN_COLUMNS_PER_THREAD: usize = 4;
 /// each block is a pass over the whole factor, and wider blocks use the
 /// kernels better (the default diagnosis took about a fifth less CPU time
 /// than with blocks split on every call; `docs/benchmarks.md`, session 16).
-fn solve_split(factor: &Llt<usize, f64>, rhs: MatMut<'_, f64>) {
+fn solve_split(factor: &CholeskyFactor, rhs: MatMut<'_, f64>) {
     let threads = match rayon::current_thread_index() {
         Some(_) => 1,
         None => rayon::current_num_threads(),
@@ -430,9 +525,9 @@ fn solve_split(factor: &Llt<usize, f64>, rhs: MatMut<'_, f64>) {
     solve_blocks(factor, rhs, blocks.max(1));
 }
 
-fn solve_blocks(factor: &Llt<usize, f64>, rhs: MatMut<'_, f64>, blocks: usize) {
+fn solve_blocks(factor: &CholeskyFactor, rhs: MatMut<'_, f64>, blocks: usize) {
     if blocks < 2 {
-        factor.solve_in_place(rhs);
+        factor.solve_factorized(rhs);
         return;
     }
     let left_blocks = blocks / 2;

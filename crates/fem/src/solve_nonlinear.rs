@@ -35,10 +35,8 @@
 //!   and two triangular solves, and many load cases share one blocked solve.
 //!   It converges linearly, at a rate that worsens with strain.
 
-use faer::linalg::solvers::Solve;
+use faer::Mat;
 use faer::sparse::SparseColMat;
-use faer::sparse::linalg::solvers::Llt;
-use faer::{Mat, Side};
 
 use crate::assemble::multiply;
 use crate::assemble_nonlinear::HyperelasticAssembler;
@@ -245,14 +243,12 @@ impl<const D: usize> HyperelasticProblem<D> {
         for (r, &p) in reduced.val_mut().iter_mut().zip(&self.gather) {
             *r = values[p];
         }
-        let factor = Llt::try_new_with_symbolic(
-            self.linear.symbolic_factorization().clone(),
-            reduced.as_ref(),
-            Side::Lower,
-        )
-        .map_err(|e| FemError::Factorization(format!("tangent stiffness: {e:?}")))?;
+        let mut factor = self.linear.new_factor();
+        factor
+            .factorize(reduced.as_ref())
+            .map_err(|e| FemError::Factorization(format!("tangent stiffness: {e}")))?;
         let mut solution = Mat::from_fn(residual.len(), 1, |k, _| residual[k]);
-        factor.solve_in_place(solution.as_mut());
+        factor.solve_in_place(solution.as_mut())?;
         Ok(solution)
     }
 
