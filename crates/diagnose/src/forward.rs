@@ -76,6 +76,8 @@ use needle_fem::{ElementKind, Face, Formulation, MarkerGrid, RectangleMesh, Slab
 
 use std::sync::{Arc, Mutex};
 
+use rayon::prelude::*;
+
 use crate::body::{Body, Factorized, Span};
 use crate::effect::{Geometry, ShaftPoint, SupportSpec, TrialContext};
 use crate::error::DiagnoseError;
@@ -571,8 +573,10 @@ impl Forward {
         };
         let mut mixings: Vec<Mixing> = needles.iter().map(|_| Mixing::default()).collect();
         for round in 0..=rounds {
+            // Frame by frame independent, and outside the thread pool (a
+            // fit's trial point) the other core is idle meanwhile.
             let loads = needles
-                .iter()
+                .par_iter()
                 .zip(&placements)
                 .map(|(&(_, trial, shaft, _), placement)| {
                     let length = placement.inserted_length(&shaft);
@@ -591,7 +595,7 @@ impl Forward {
             let solutions = shared.entry.problem.displacements_many(&refs)?;
             if round < rounds {
                 placements = needles
-                    .iter()
+                    .par_iter()
                     .zip(&placements)
                     .zip(&solutions)
                     .zip(&mut mixings)

@@ -20,7 +20,7 @@
 //! The Jacobian in the current parameters is the same for every candidate
 //! (each effect is silent at its null), so it is computed once per step.
 //!
-//! **Refit.** The best candidate by score is refitted first. Each other
+//! **Refit.** The best candidate by score is always refitted. Each other
 //! is refitted only if its score p-value is below 0.05 *and* its score is
 //! at least a tenth of the larger of the leader's likelihood ratio and the
 //! least likelihood ratio the verdict names an effect with (its share
@@ -30,7 +30,11 @@
 //! overtake the leader or to be named at all (the ratio of the two stays
 //! within 1.0 to 2.2 on the quick campaign, 0.99 to 1.09 on the default).
 //! The rest keep their score alone (`refitted: false`), which saves the
-//! costliest work of a step: a refit is a whole fit.
+//! costliest work of a step: a refit is a whole fit. The others that pass
+//! the rule with the leader's score in place of its ratio are refitted
+//! beside the leader, to keep both cores busy; one that the leader's
+//! actual ratio rules out is then reported as not refitted, and one it
+//! lets in is refitted after, so the outcome is the rule's.
 //!
 //! The model with the effect added is fitted from
 //! $(\hat\theta, \psi_\text{initial})$, and again from $\hat\theta$ with
@@ -295,12 +299,41 @@ pub(crate) fn rank_candidates(
             .then(b.candidate.score.total_cmp(&a.candidate.score))
     });
     let others = scored.split_off(1.min(scored.len()));
-    let mut out = refit_all(context, current, fitted, scored)?;
+    // Refitted beside the leader: the others worth it with the leader's
+    // score as the prediction of its ratio (see the module doc).
+    let predicted = scored
+        .iter()
+        .map(|s| s.candidate.score)
+        .fold(naming_ratio, f64::max);
+    let mut first = scored;
+    let mut as_scored = Vec::new();
+    let mut held = Vec::new();
+    for s in others {
+        if worth_refitting(&s.candidate, predicted) {
+            as_scored.push(s.candidate.clone());
+            first.push(s);
+        } else {
+            held.push(s);
+        }
+    }
+    let mut out = refit_all(context, current, fitted, first)?;
+    let speculated = out.split_off(out.len() - as_scored.len());
     let bar = out
         .iter()
         .filter_map(|r| r.candidate.likelihood_ratio)
         .fold(naming_ratio, f64::max);
-    let (worth, rest): (Vec<Scored>, Vec<Scored>) = others
+    for (ranked, candidate) in speculated.into_iter().zip(as_scored) {
+        if worth_refitting(&candidate, bar) {
+            out.push(ranked);
+        } else {
+            out.push(Ranked {
+                candidate,
+                spec: ranked.spec,
+                fitted: None,
+            });
+        }
+    }
+    let (worth, rest): (Vec<Scored>, Vec<Scored>) = held
         .into_iter()
         .partition(|s| worth_refitting(&s.candidate, bar));
     out.extend(refit_all(context, current, fitted, worth)?);
