@@ -869,12 +869,6 @@ mod tests {
         assert_eq!(drag, axis);
     }
 
-    /// The unit probe load on a Tet10 slab of two layers (the forward
-    /// model's) carries the punch's force and its moments: total 1 along
-    /// the axis, centred on the contact, the rigid punch's second moment
-    /// $a^2/8$ across the width and the even spread's $t^2/12$ through the
-    /// thickness (quadratic shape functions reproduce $x^2$ and $z^2$, so
-    /// the nodal loads keep the moments of the load they spread).
     /// Once the cache is full and no evaluation holds its oldest entry, a
     /// new rigid factorisation takes over that entry's storage; it solves
     /// to the bit as a factorisation on a fresh body, and a compliant one
@@ -927,6 +921,12 @@ mod tests {
         }
     }
 
+    /// The unit probe load on a Tet10 slab of two layers (the forward
+    /// model's) carries the punch's force and its moments: total 1 along
+    /// the axis, centred on the contact, the rigid punch's second moment
+    /// $a^2/8$ across the width and the even spread's $t^2/12$ through the
+    /// thickness (quadratic shape functions reproduce $x^2$ and $z^2$, so
+    /// the nodal loads keep the moments of the load they spread).
     #[test]
     fn slab_probe_load_has_the_patch_moments() {
         let body = slab_body();

@@ -73,8 +73,8 @@ pub struct LinearProblem<const D: usize> {
 /// this keeps the values of $L$ in one vector that a factorisation on the
 /// same pattern overwrites. A problem factorised again with new materials
 /// then touches no fresh memory: on the default campaign's graded slab the
-/// factor is 74 MB, and the kernel's clearing of its new pages took about
-/// a fifth of each factorisation (`docs/benchmarks.md`, session 18). The
+/// factor is 74 MB, and the kernel's clearing of its new pages had 7.4% of
+/// the default diagnosis's profile (`docs/benchmarks.md`, session 18). The
 /// arithmetic is faer's own (`factorize_numeric_llt`, `LltRef`), with the
 /// same defaults as `Llt`.
 #[derive(Debug, Clone)]
