@@ -926,7 +926,7 @@ fn interpolate_ratio(table: &[(f64, f64)], length: f64) -> f64 {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use needle_data::{BundleBuilder, MarkerRest, Phantom, ToolSample, Trial, TrialKind};
 
     use super::*;
@@ -945,7 +945,7 @@ mod tests {
 
     /// A campaign of one frame per trial `(id, kind, day, tip y)` on the
     /// grid of [`observations`].
-    fn observations_of(trials: &[(&str, TrialKind, f64, f64)]) -> Observations {
+    pub(crate) fn observations_of(trials: &[(&str, TrialKind, f64, f64)]) -> Observations {
         let mut builder = BundleBuilder::new(
             "tiny",
             Phantom {
@@ -997,7 +997,7 @@ mod tests {
         Observations::from_campaign(&builder.finish(), 1, 0.005, 0, 1.0).unwrap()
     }
 
-    fn paper_phantom() -> Phantom {
+    pub(crate) fn paper_phantom() -> Phantom {
         Phantom {
             width: 0.075,
             depth: 0.075,
