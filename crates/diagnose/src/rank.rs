@@ -513,11 +513,11 @@ mod tests {
 
     #[test]
     fn the_score_test_s_step_explains_most_of_an_effect_linear_in_its_parameter() {
-        // Data made by the model itself with a tip peak (the load is
-        // linear in its amplitude): from the baseline's fit, one
-        // Gauss-Newton step of the amplitude, with the baseline's
-        // parameters re-adjusting, must recover nearly all the misfit the
-        // effect leaves, as its refit from there does.
+        // Data made by the model itself with a tip peak (at a given shaft
+        // density the load is linear in its amplitude): from the
+        // baseline's fit, one Gauss-Newton step of the amplitude, with the
+        // baseline's parameters re-adjusting, must remove nearly all the
+        // misfit the missing peak leaves.
         let obs = observations_of(&[
             ("probe", TrialKind::Probe, 2.0, 0.0),
             ("shallow", TrialKind::Needle, 3.0, 0.03),
