@@ -997,7 +997,7 @@ pub(crate) mod tests {
         Observations::from_campaign(&builder.finish(), 1, 0.005, 0, 1.0).unwrap()
     }
 
-    pub(crate) fn paper_phantom() -> Phantom {
+    fn paper_phantom() -> Phantom {
         Phantom {
             width: 0.075,
             depth: 0.075,
@@ -1066,7 +1066,11 @@ pub(crate) mod tests {
     /// The observations of [`observations`] on the paper's phantom, its
     /// forward model and a baseline start.
     fn paper_forward() -> (Observations, Forward, Baseline) {
-        let obs = observations();
+        paper_forward_of(observations())
+    }
+
+    /// `obs` on the paper's phantom, its forward model and a baseline start.
+    pub(crate) fn paper_forward_of(obs: Observations) -> (Observations, Forward, Baseline) {
         let forward = Forward::new(&paper_phantom(), &obs.rest, 1, 1, &[], 0.0).unwrap();
         let start = Baseline {
             youngs_modulus: 25.0e3,

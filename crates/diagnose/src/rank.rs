@@ -506,9 +506,9 @@ mod tests {
     use needle_data::TrialKind;
 
     use super::*;
-    use crate::forward::tests::{observations_of, paper_phantom};
-    use crate::forward::{Forward, Start};
-    use crate::model::{Baseline, test_model};
+    use crate::forward::Start;
+    use crate::forward::tests::{observations_of, paper_forward_of};
+    use crate::model::test_model;
     use crate::whiten::Whitening;
 
     #[test]
@@ -518,18 +518,11 @@ mod tests {
         // baseline's fit, one Gauss-Newton step of the amplitude, with the
         // baseline's parameters re-adjusting, must remove nearly all the
         // misfit the missing peak leaves.
-        let obs = observations_of(&[
+        let (obs, forward, start) = paper_forward_of(observations_of(&[
             ("probe", TrialKind::Probe, 2.0, 0.0),
             ("shallow", TrialKind::Needle, 3.0, 0.03),
             ("deep", TrialKind::Needle, 3.0, 0.05),
-        ]);
-        let forward = Forward::new(&paper_phantom(), &obs.rest, 1, 1, &[], 0.0).unwrap();
-        let start = Baseline {
-            youngs_modulus: 25.0e3,
-            poisson_ratio: 0.45,
-            shaft_density: 10.0,
-            probe_width: 0.002,
-        };
+        ]));
         let geometry = &forward.geometry.clone();
         let truth = Model::new(
             &ModelSpec::from_ids(&["tip_cutting_force"]).unwrap(),
