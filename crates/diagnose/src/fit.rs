@@ -13,7 +13,7 @@ use crate::error::DiagnoseError;
 use crate::forward::{Forward, Placements, Start};
 use crate::model::{Model, PROBE_WIDTH};
 use crate::observe::Observations;
-use crate::place::NEAR_ROUNDS;
+use crate::place::{NEAR_ROUNDS, RANKING_NEAR_ROUNDS};
 use crate::whiten::Whitening;
 
 /// Misfit of a fitted model, per channel. A channel without data has `NaN`.
@@ -57,18 +57,16 @@ impl Context {
     }
 
     /// Whitened residuals at `p` with the loads placed from `placements`
-    /// in [`NEAR_ROUNDS`] rounds: the map a finite-difference column around
-    /// the point that `placements` come from differences.
+    /// in `rounds` rounds: the map a finite-difference column around the
+    /// point that `placements` come from differences.
     pub fn whitened_near(
         &self,
         model: &Model,
         placements: &Placements,
         p: &[f64],
+        rounds: usize,
     ) -> Result<Vec<f64>, DiagnoseError> {
-        let start = Start::Near {
-            placements,
-            rounds: NEAR_ROUNDS,
-        };
+        let start = Start::Near { placements, rounds };
         Ok(self.whitening.apply(&self.evaluate(model, p, start)?.0))
     }
 }
@@ -104,19 +102,18 @@ struct Evaluation {
 pub(crate) struct FitProblem<'a> {
     pub context: &'a Context,
     pub model: &'a Model,
-    /// Whether the Jacobian's columns start from the base point's
-    /// placements.
-    near: bool,
+    /// Rounds of the Jacobian's columns from the base point's placements.
+    near_rounds: usize,
     /// The last evaluations of the model proper.
     evaluations: Mutex<Vec<Evaluation>>,
 }
 
 impl<'a> FitProblem<'a> {
-    pub fn new(context: &'a Context, model: &'a Model, near: bool) -> Self {
+    pub fn new(context: &'a Context, model: &'a Model, near_rounds: usize) -> Self {
         Self {
             context,
             model,
-            near,
+            near_rounds,
             evaluations: Mutex::new(Vec::new()),
         }
     }
@@ -169,24 +166,21 @@ impl Problem for FitProblem<'_> {
         Ok(())
     }
 
-    /// In a candidate's refit, the Jacobian's columns place the needle
-    /// loads from the base point's placements in [`NEAR_ROUNDS`] rounds
-    /// instead of from the spatial line: 3 back-substitutions per needle
-    /// frame instead of 5 on the plane body and 4 on the slab.
+    /// The Jacobian's columns place the needle loads from the base point's
+    /// placements in a few rounds ([`Precision::near_rounds`]) instead of
+    /// from the spatial line: 2 or 3 back-substitutions per needle frame
+    /// instead of 5 on the plane body and 4 on the slab.
     fn residuals_near(
         &self,
         base: &[f64],
         params: &[f64],
         out: &mut [f64],
     ) -> Option<Result<(), needle_lsq::EvaluationError>> {
-        if !self.near {
-            return None;
-        }
         let mut evaluate = || -> Result<(), DiagnoseError> {
             let (_, placements) = self.evaluated_at(base)?;
-            let whitened = self
-                .context
-                .whitened_near(self.model, &placements, params)?;
+            let whitened =
+                self.context
+                    .whitened_near(self.model, &placements, params, self.near_rounds)?;
             out.copy_from_slice(&whitened);
             Ok(())
         };
@@ -194,27 +188,25 @@ impl Problem for FitProblem<'_> {
     }
 }
 
-/// How precisely a fit is carried out.
+/// How precisely a fit is carried out. Both difference the model with
+/// the needle loads placed from the base point's placements (see
+/// [`FitProblem::residuals_near`]), in more rounds for the model proper.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Precision {
     /// The fits that set the current model: relative tolerance (cost
-    /// reduction, step, gradient) 1e-8, finite differences of the model
-    /// itself.
+    /// reduction, step, gradient) 1e-8, columns in [`NEAR_ROUNDS`] rounds,
+    /// whose derivatives are within 1% of the model's own differences.
     Model,
     /// A candidate's refit in the ranking: relative tolerance 1e-5, and
-    /// Jacobian columns that place the needle loads from the base point's
-    /// placements (see [`FitProblem::residuals_near`]). A refit stopped
-    /// early has a chi-square a little too high, so its likelihood ratio
-    /// is a lower bound: the ranking can only understate a candidate, never
-    /// name one the data do not support, and the candidate named is
+    /// columns in [`RANKING_NEAR_ROUNDS`] round, within 2.5%. A refit
+    /// stopped early has a chi-square a little too high, so its likelihood
+    /// ratio is a lower bound: the ranking can only understate a candidate,
+    /// never name one the data do not support, and the candidate named is
     /// refitted at [`Precision::Model`] before the next step. At 1e-5 a
     /// further step would lower $\chi^2$ by less than $10^{-5}\chi^2$.
-    /// The columns' derivative is within 1% of the model's, which can stop
-    /// a fit a little earlier still: on the quick campaign the ladder's
-    /// chi2/dof moved by at most 1e-4 relative when model fits used them
-    /// too, so those keep the model's own differences. Only the refit's
-    /// misfit and parameters are used, so it takes no Jacobian at its
-    /// optimum for a covariance ([`needle_lsq::Options::uncertainty`]).
+    /// Only the refit's misfit and parameters are used, so it takes no
+    /// Jacobian at its optimum for a covariance
+    /// ([`needle_lsq::Options::uncertainty`]).
     Candidate,
 }
 
@@ -223,6 +215,14 @@ impl Precision {
         match self {
             Precision::Model => 1e-8,
             Precision::Candidate => 1e-5,
+        }
+    }
+
+    /// Placement rounds of the Jacobian's columns.
+    pub fn near_rounds(self) -> usize {
+        match self {
+            Precision::Model => NEAR_ROUNDS,
+            Precision::Candidate => RANKING_NEAR_ROUNDS,
         }
     }
 }
@@ -238,7 +238,7 @@ pub(crate) fn fit_model(
     fixed: &[bool],
     precision: Precision,
 ) -> Result<Fitted, DiagnoseError> {
-    let problem = FitProblem::new(context, model, precision == Precision::Candidate);
+    let problem = FitProblem::new(context, model, precision.near_rounds());
     let tolerance = precision.tolerance();
     let mut fixed = fixed.to_vec();
     fixed.resize(model.len(), false);

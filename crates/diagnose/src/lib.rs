@@ -86,10 +86,10 @@
 //!   one that explains most by refit, nor one that could be named. Refits
 //!   stop at a relative tolerance of $10^{-5}$ (their likelihood ratio is
 //!   then a lower bound), and their Jacobians place the needle loads from
-//!   the base point's placements (within 1% of the model's own derivative,
-//!   for fewer back-substitutions; see `fit::Precision`); the model that
-//!   continues the ladder is refitted to $10^{-8}$ with the model's own
-//!   differences.
+//!   the base point's placements in one round (within 2.5% of the model's
+//!   own derivative, for fewer back-substitutions; see `fit::Precision`);
+//!   the model that continues the ladder is refitted to $10^{-8}$ with
+//!   columns placed in two rounds (within 1%).
 //!
 //! ## The verdict
 //!

@@ -127,7 +127,8 @@ impl CurrentJacobian {
         let at = &fitted.params;
         let residuals = context.whitening.apply(&fitted.residuals);
         let placements = &fitted.placements;
-        let near = context.whitened_near(current, placements, at)?;
+        let rounds = Precision::Candidate.near_rounds();
+        let near = context.whitened_near(current, placements, at, rounds)?;
         let free: Vec<usize> = (0..current.len())
             .filter(|&k| {
                 fitted.report.uncertainty.status[k] == needle_lsq::ParameterStatus::Estimated
@@ -178,7 +179,8 @@ fn forward_difference(
     }
     let mut p = at.to_vec();
     p[k] += h;
-    let r = context.whitened_near(model, base.placements, &p)?;
+    let rounds = Precision::Candidate.near_rounds();
+    let r = context.whitened_near(model, base.placements, &p, rounds)?;
     Ok(r.iter()
         .zip(base.residuals)
         .map(|(a, b)| (a - b) / h)
