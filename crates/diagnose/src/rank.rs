@@ -15,7 +15,9 @@
 //! points out of the feasible side, $S = 0$. $J_\psi$ uses forward
 //! differences of $10^{-3}$ of the parameter's scale into the feasible side
 //! (the support compliance, whose null is the rigid limit, needs a finite
-//! step); $J_\theta$ steps $10^{-6}$ of the scale.
+//! step); $J_\theta$ steps $10^{-6}$ of the scale. Both re-place the needle
+//! loads from the current fit's placements in one round
+//! (`place::RANKING_NEAR_ROUNDS`), as the refits' columns do.
 //!
 //! The Jacobian in the current parameters is the same for every candidate
 //! (each effect is silent at its null), so it is computed once per step.
@@ -61,6 +63,7 @@ use crate::error::DiagnoseError;
 use crate::fit::{Context, Fit, Fitted, Precision, fit_model};
 use crate::forward::Placements;
 use crate::model::{Model, PROBE_WIDTH};
+use crate::place::RANKING_NEAR_ROUNDS;
 use crate::spec::ModelSpec;
 
 /// One effect not in the model, with the evidence for it.
@@ -127,8 +130,7 @@ impl CurrentJacobian {
         let at = &fitted.params;
         let residuals = context.whitening.apply(&fitted.residuals);
         let placements = &fitted.placements;
-        let rounds = Precision::Candidate.near_rounds();
-        let near = context.whitened_near(current, placements, at, rounds)?;
+        let near = context.whitened_near(current, placements, at, RANKING_NEAR_ROUNDS)?;
         let free: Vec<usize> = (0..current.len())
             .filter(|&k| {
                 fitted.report.uncertainty.status[k] == needle_lsq::ParameterStatus::Estimated
@@ -179,8 +181,7 @@ fn forward_difference(
     }
     let mut p = at.to_vec();
     p[k] += h;
-    let rounds = Precision::Candidate.near_rounds();
-    let r = context.whitened_near(model, base.placements, &p, rounds)?;
+    let r = context.whitened_near(model, base.placements, &p, RANKING_NEAR_ROUNDS)?;
     Ok(r.iter()
         .zip(base.residuals)
         .map(|(a, b)| (a - b) / h)
