@@ -106,6 +106,10 @@ pub(crate) struct FitProblem<'a> {
     near_rounds: usize,
     /// The last evaluations of the model proper.
     evaluations: Mutex<Vec<Evaluation>>,
+    /// The columns' own map at the base point of the Jacobian being
+    /// differenced: its parameters and solutions, which the columns of
+    /// parameters acting after the solves take (`Start::Reuse`).
+    near_base: Mutex<Option<(Vec<f64>, Arc<Placements>)>>,
 }
 
 impl<'a> FitProblem<'a> {
@@ -115,6 +119,7 @@ impl<'a> FitProblem<'a> {
             model,
             near_rounds,
             evaluations: Mutex::new(Vec::new()),
+            near_base: Mutex::new(None),
         }
     }
 
@@ -169,7 +174,10 @@ impl Problem for FitProblem<'_> {
     /// The Jacobian's columns place the needle loads from the base point's
     /// placements in a few rounds ([`Precision::near_rounds`]) instead of
     /// from the spatial line: 2 or 3 back-substitutions per needle frame
-    /// instead of 5 on the plane body and 4 on the slab.
+    /// instead of 5 on the plane body and 4 on the slab. The columns of
+    /// parameters that act after the solves (`out_of_plane`'s weight,
+    /// `lens_distortion`) take this map's solutions at the base point,
+    /// which the engine evaluates first, and solve nothing.
     fn residuals_near(
         &self,
         base: &[f64],
@@ -177,11 +185,34 @@ impl Problem for FitProblem<'_> {
         out: &mut [f64],
     ) -> Option<Result<(), needle_lsq::EvaluationError>> {
         let mut evaluate = || -> Result<(), DiagnoseError> {
-            let (_, placements) = self.evaluated_at(base)?;
-            let whitened =
-                self.context
-                    .whitened_near(self.model, &placements, params, self.near_rounds)?;
-            out.copy_from_slice(&whitened);
+            let stored = self.near_base.lock().unwrap_or_else(|e| e.into_inner());
+            let reusable = stored.as_ref().and_then(|(at, solved)| {
+                (params != base
+                    && at.as_slice() == base
+                    && self.model.solves_alike(base, params)
+                    && solved.serve(self.model, params))
+                .then(|| Arc::clone(solved))
+            });
+            drop(stored);
+            let (residuals, placements) = match reusable {
+                Some(solved) => {
+                    let start = Start::Reuse { solved: &solved };
+                    self.context.evaluate(self.model, params, start)?
+                }
+                None => {
+                    let (_, placements) = self.evaluated_at(base)?;
+                    let start = Start::Near {
+                        placements: &placements,
+                        rounds: self.near_rounds,
+                    };
+                    self.context.evaluate(self.model, params, start)?
+                }
+            };
+            out.copy_from_slice(&self.context.whitening.apply(&residuals));
+            if params == base {
+                let mut stored = self.near_base.lock().unwrap_or_else(|e| e.into_inner());
+                *stored = Some((base.to_vec(), Arc::new(placements)));
+            }
             Ok(())
         };
         Some(evaluate().map_err(Into::into))

@@ -54,7 +54,9 @@
 //!   `place::RANKING_NEAR_ROUNDS` (the ranking) within 2.5% (a unit test
 //!   checks every parameter that moves the load), for 3 or 2
 //!   back-substitutions per frame instead of 5 on the plane and 4 on the
-//!   slab.
+//!   slab. A column of a parameter that acts after the solves (the slab's
+//!   weight, the lens) takes the solutions of the columns' map at the base
+//!   point as they are ([`Start::Reuse`]) and solves nothing.
 //! - Needle force sample: $F = \hat d \int_0^{L'} q(s)\,ds$ with the
 //!   inserted length $L' = L - \delta$, the entry's drag $\delta$ per unit
 //!   length interpolated in $L$ between the trial's frames.
@@ -142,23 +144,94 @@ fn at(values: &[[f64; 2]], m: usize) -> [f64; 2] {
     values.get(m).copied().unwrap_or([0.0; 2])
 }
 
-/// What the bodies' solutions add up to, per column of a group.
+/// What one body's solutions give, or the bodies' add up to, per column
+/// of a group.
+#[derive(Debug, Clone)]
 struct Columns {
     /// Marker displacements (probe columns: per unit force along the axis).
     displacement: Vec<Vec<[f64; 2]>>,
-    /// Needle columns: the entry offset $\delta$.
+    /// Needle columns: the entry offset $\delta$ of the linear solution.
     entry_offsets: Vec<f64>,
     /// The first column of each frame: its neo-Hookean part.
     nonlinear: Vec<Nonlinear>,
+    /// Needle columns: the neo-Hookean part of the entry offset.
+    nonlinear_entry_offsets: Vec<f64>,
+}
+
+impl Columns {
+    fn zeros(columns: usize, markers: usize) -> Self {
+        Self {
+            displacement: vec![vec![[0.0; 2]; markers]; columns],
+            entry_offsets: vec![0.0; columns],
+            nonlinear: vec![Nonlinear::default(); columns],
+            nonlinear_entry_offsets: vec![0.0; columns],
+        }
+    }
+
+    /// The prediction's columns: the plane body's and the slab's linear
+    /// parts blended with their weights, plus the plane's neo-Hookean
+    /// part (already weighted).
+    fn blend(plane: &Columns, slab: Option<&Columns>, plane_weight: f64, slab_weight: f64) -> Self {
+        let displacement = (0..plane.displacement.len())
+            .map(|k| {
+                let mut column: Vec<[f64; 2]> = plane.displacement[k]
+                    .iter()
+                    .map(|&[x, y]| [plane_weight * x, plane_weight * y])
+                    .collect();
+                if let Some(slab) = slab {
+                    for (value, &[x, y]) in column.iter_mut().zip(&slab.displacement[k]) {
+                        value[0] += slab_weight * x;
+                        value[1] += slab_weight * y;
+                    }
+                }
+                column
+            })
+            .collect();
+        let entry_offsets = (0..plane.entry_offsets.len())
+            .map(|k| {
+                plane_weight * plane.entry_offsets[k]
+                    + slab.map_or(0.0, |slab| slab_weight * slab.entry_offsets[k])
+                    + plane.nonlinear_entry_offsets[k]
+            })
+            .collect();
+        Self {
+            displacement,
+            entry_offsets,
+            nonlinear: plane.nonlinear.clone(),
+            nonlinear_entry_offsets: plane.nonlinear_entry_offsets.clone(),
+        }
+    }
+}
+
+/// One group of trials' solutions on each body, unweighted (the slab's
+/// `None` where it was not solved): what [`Start::Reuse`] takes.
+#[derive(Debug, Clone)]
+struct GroupSolutions {
+    plane: Columns,
+    slab: Option<Columns>,
 }
 
 /// Where one evaluation placed the needle load of every needle frame, on
 /// each body (by frame index; `None` for other frames and a body not
-/// solved).
+/// solved), and what each body's solves gave for each group of trials.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Placements {
     plane: Vec<Option<Placement>>,
     slab: Vec<Option<Placement>>,
+    solutions: Vec<GroupSolutions>,
+}
+
+impl Placements {
+    /// Whether these solutions serve an evaluation of `model` at `p` whose
+    /// parameters differ from theirs only in what acts after the solves
+    /// ([`Model::solves_alike`]): they must hold the slab if `p` weighs it.
+    pub fn serve(&self, model: &Model, p: &[f64]) -> bool {
+        let slab_weight: f64 = model
+            .effects_with(p)
+            .map(|(effect, own)| effect.slab_weight(own))
+            .sum();
+        slab_weight == 0.0 || self.solutions.iter().all(|g| g.slab.is_some())
+    }
 }
 
 /// Where the placement of the needle loads starts.
@@ -176,6 +249,14 @@ pub(crate) enum Start<'a> {
         placements: &'a Placements,
         rounds: usize,
     },
+    /// The solutions and placements of an evaluation whose parameters
+    /// differ only in what acts after the solves (the bodies' blend, the
+    /// measurement map; see [`Model::solves_alike`] and
+    /// [`Placements::serve`]), taken as they are: no solve at all. They
+    /// are the very numbers a solve would give, so a finite-difference
+    /// column of such a parameter costs nothing and differs from its
+    /// solved value by nothing.
+    Reuse { solved: &'a Placements },
 }
 
 impl Start<'_> {
@@ -488,19 +569,18 @@ impl Forward {
     }
 
     /// The in-plane displacement of every marker under every column on
-    /// `body`, times `weight`, added to `out.displacement[column][marker]`;
-    /// for needle columns, the entry offset $\delta$ times `weight` added to
+    /// `body` added to `out.displacement[column][marker]`; for needle
+    /// columns, the entry offset $\delta$ added to
     /// `out.entry_offsets[column]`; the neo-Hookean parts times `nonlinear`
-    /// (not times `weight`) to `out.nonlinear`. The needle loads are placed
-    /// in `rounds` rounds from `start` (the spatial line if `None`). The
-    /// columns' trials have the material field of `trial` up to a uniform
-    /// factor each, and share its factorisation; every round solves all
-    /// their needle loads at once.
+    /// to `out.nonlinear` and `out.nonlinear_entry_offsets`. The needle
+    /// loads are placed in `rounds` rounds from `start` (the spatial line
+    /// if `None`); returns where. The columns' trials have the material
+    /// field of `trial` up to a uniform factor each, and share its
+    /// factorisation; every round solves all their needle loads at once.
     #[allow(clippy::too_many_arguments)]
     fn add_columns<const D: usize>(
         &self,
         body: &Body<D>,
-        weight: f64,
         nonlinear: f64,
         model: &Model,
         p: &[f64],
@@ -537,8 +617,8 @@ impl Forward {
                     let responses = body.probe_responses(&locator, &factorized, contact, width)?;
                     for (axis, response) in responses.iter().enumerate() {
                         for (value, u) in out.displacement[k + axis].iter_mut().zip(response) {
-                            value[0] += weight * u[0];
-                            value[1] += weight * u[1];
+                            value[0] += u[0];
+                            value[1] += u[1];
                         }
                     }
                     if nonlinear != 0.0 {
@@ -622,10 +702,10 @@ impl Forward {
                 solutions.iter().zip(&needles).zip(&placements)
             {
                 for (value, d) in out.displacement[k].iter_mut().zip(body.markers(u, scale)) {
-                    value[0] += weight * d[0];
-                    value[1] += weight * d[1];
+                    value[0] += d[0];
+                    value[1] += d[1];
                 }
-                out.entry_offsets[k] += weight * placement.entry_offset;
+                out.entry_offsets[k] += placement.entry_offset;
             }
             if nonlinear != 0.0 {
                 let refs: Vec<&[f64]> = solutions.iter().map(|u| u.as_slice()).collect();
@@ -646,12 +726,101 @@ impl Forward {
                             divisor,
                             placement.material[0],
                         )?;
-                        out.entry_offsets[k] += w * (d[0] * entry[0] + d[1] * entry[1]);
+                        out.nonlinear_entry_offsets[k] += w * (d[0] * entry[0] + d[1] * entry[1]);
                     }
                 }
             }
         }
         Ok(placements)
+    }
+
+    /// Solves the `columns` of the group of trials led by `trial` on the
+    /// plane body and, if `slab`, on the slab, the neo-Hookean part
+    /// weighted by `nonlinear`; records the needle placements of
+    /// `needle_frames` in `placements`.
+    #[allow(clippy::too_many_arguments)]
+    fn solve_group(
+        &self,
+        model: &Model,
+        p: &[f64],
+        obs: &Observations,
+        trial: usize,
+        supports: SupportSpec,
+        slab: bool,
+        nonlinear: f64,
+        columns: &[Column],
+        needle_frames: &[usize],
+        start: Start<'_>,
+        placements: &mut Placements,
+    ) -> Result<GroupSolutions, DiagnoseError> {
+        let markers = obs.rest.len();
+        let mut plane_columns = Columns::zeros(columns.len(), markers);
+        let (plane_start, plane_rounds) = start.on(needle_frames, |s| &s.plane);
+        let plane_rounds = plane_rounds.unwrap_or(self.placement_rounds);
+        // The plane model always runs (at weight 0 if need be): the
+        // slab starts from its needle placement, and the neo-Hookean
+        // terms are the plane's (see the module doc). The slab's
+        // factorisation does not depend on the placement, so it is
+        // made (and cached) on another thread meanwhile.
+        let (placed, slab_factorized) = rayon::join(
+            || {
+                self.add_columns(
+                    &self.plane,
+                    nonlinear,
+                    model,
+                    p,
+                    obs,
+                    trial,
+                    supports,
+                    columns,
+                    &mut plane_columns,
+                    plane_start.as_deref(),
+                    plane_rounds,
+                )
+            },
+            || {
+                slab.then(|| {
+                    let body = self.slab_for(supports)?;
+                    let moduli = Self::moduli(&body, model, p, &obs.trials[trial]);
+                    let nu = model.baseline(p).poisson_ratio;
+                    body.factorized(&moduli, nu, supports)
+                })
+                .transpose()
+            },
+        );
+        let placed = placed?;
+        slab_factorized?;
+        for (&frame, placement) in needle_frames.iter().zip(&placed) {
+            placements.plane[frame] = Some(placement.clone());
+        }
+        let slab_columns = if slab {
+            let mut slab_columns = Columns::zeros(columns.len(), markers);
+            let (slab_start, slab_rounds) = start.on(needle_frames, |s| &s.slab);
+            let body = self.slab_for(supports)?;
+            let slab_placed = self.add_columns(
+                &body,
+                0.0,
+                model,
+                p,
+                obs,
+                trial,
+                supports,
+                columns,
+                &mut slab_columns,
+                Some(slab_start.as_deref().unwrap_or(&placed)),
+                slab_rounds.unwrap_or(self.slab_placement_rounds),
+            )?;
+            for (&frame, placement) in needle_frames.iter().zip(slab_placed) {
+                placements.slab[frame] = Some(placement);
+            }
+            Some(slab_columns)
+        } else {
+            None
+        };
+        Ok(GroupSolutions {
+            plane: plane_columns,
+            slab: slab_columns,
+        })
     }
 
     /// Predicts every observation at parameters `p`.
@@ -676,6 +845,7 @@ impl Forward {
         let mut placements = Placements {
             plane: vec![None; obs.frames.len()],
             slab: vec![None; obs.frames.len()],
+            solutions: Vec::new(),
         };
         let mut supports = SupportSpec::default();
         let mut slab_weight = 0.0;
@@ -741,11 +911,6 @@ impl Forward {
             if columns.is_empty() {
                 continue;
             }
-            let mut out = Columns {
-                displacement: vec![vec![[0.0; 2]; obs.rest.len()]; columns.len()],
-                entry_offsets: vec![0.0; columns.len()],
-                nonlinear: vec![Nonlinear::default(); columns.len()],
-            };
             let needle_frames: Vec<usize> = columns
                 .iter()
                 .filter_map(|c| match *c {
@@ -753,67 +918,35 @@ impl Forward {
                     Column::Probe { .. } => None,
                 })
                 .collect();
-            let (plane_start, plane_rounds) = start.on(&needle_frames, |s| &s.plane);
-            let plane_rounds = plane_rounds.unwrap_or(self.placement_rounds);
-            // The plane model always runs (at weight 0 if need be): the
-            // slab starts from its needle placement, and the neo-Hookean
-            // terms are the plane's (see the module doc). The slab's
-            // factorisation does not depend on the placement, so it is
-            // made (and cached) on another thread meanwhile.
-            let (placed, slab_factorized) = rayon::join(
-                || {
-                    self.add_columns(
-                        &self.plane,
-                        plane_weight,
-                        nonlinear,
-                        model,
-                        p,
-                        obs,
-                        first,
-                        supports,
-                        &columns,
-                        &mut out,
-                        plane_start.as_deref(),
-                        plane_rounds,
-                    )
-                },
-                || {
-                    (slab_weight != 0.0)
-                        .then(|| {
-                            let slab = self.slab_for(supports)?;
-                            let moduli = Self::moduli(&slab, model, p, &obs.trials[first]);
-                            let nu = model.baseline(p).poisson_ratio;
-                            slab.factorized(&moduli, nu, supports)
-                        })
-                        .transpose()
-                },
-            );
-            let placed = placed?;
-            slab_factorized?;
-            for (&frame, placement) in needle_frames.iter().zip(&placed) {
-                placements.plane[frame] = Some(placement.clone());
-            }
-            if slab_weight != 0.0 {
-                let (slab_start, slab_rounds) = start.on(&needle_frames, |s| &s.slab);
-                let slab = self.slab_for(supports)?;
-                let slab_placed = self.add_columns(
-                    &slab,
-                    slab_weight,
-                    0.0,
+            let solved = match start {
+                Start::Reuse { solved } => {
+                    for &frame in &needle_frames {
+                        placements.plane[frame] = solved.plane[frame].clone();
+                        placements.slab[frame] = solved.slab[frame].clone();
+                    }
+                    solved.solutions[placements.solutions.len()].clone()
+                }
+                Start::Cold | Start::Near { .. } => self.solve_group(
                     model,
                     p,
                     obs,
                     first,
                     supports,
+                    slab_weight != 0.0,
+                    nonlinear,
                     &columns,
-                    &mut out,
-                    Some(slab_start.as_deref().unwrap_or(&placed)),
-                    slab_rounds.unwrap_or(self.slab_placement_rounds),
-                )?;
-                for (&frame, placement) in needle_frames.iter().zip(slab_placed) {
-                    placements.slab[frame] = Some(placement);
-                }
-            }
+                    &needle_frames,
+                    start,
+                    &mut placements,
+                )?,
+            };
+            let out = Columns::blend(
+                &solved.plane,
+                solved.slab.as_ref(),
+                plane_weight,
+                slab_weight,
+            );
+            placements.solutions.push(solved);
             for (k, &f) in frames.iter().enumerate() {
                 let frame = &obs.frames[f];
                 let start = first_column[k];
@@ -1369,6 +1502,51 @@ pub(crate) mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn columns_of_parameters_acting_after_the_solves_take_the_base_s_solutions_to_the_bit() {
+        let (obs, forward, start) = paper_forward();
+        let model = with_effects(
+            &forward,
+            start,
+            &["tip_cutting_force", "out_of_plane", "lens_distortion"],
+        );
+        let p = [25.0e3, 0.45, 10.0, 0.002, 2.0, 0.005, 0.7, 0.02];
+        let (_, cold) = forward.predict_from(&model, &p, &obs, Start::Cold).unwrap();
+        let near = Start::Near {
+            placements: &cold,
+            rounds: crate::place::RANKING_NEAR_ROUNDS,
+        };
+        let (_, solved) = forward.predict_from(&model, &p, &obs, near).unwrap();
+        // The slab's weight and the lens: the solutions serve.
+        for k in [6, 7] {
+            let mut moved = p.to_vec();
+            moved[k] += 1e-3;
+            assert!(model.solves_alike(&p, &moved));
+            assert!(solved.serve(&model, &moved));
+            let (solving, _) = forward.predict_from(&model, &moved, &obs, near).unwrap();
+            let reuse = Start::Reuse { solved: &solved };
+            let (reusing, _) = forward.predict_from(&model, &moved, &obs, reuse).unwrap();
+            assert_eq!(reusing.values, solving.values, "parameter {k}");
+            for (a, b) in reusing.probe_responses.iter().zip(&solving.probe_responses) {
+                assert_eq!((&a.unit_x, &a.unit_y), (&b.unit_x, &b.unit_y));
+            }
+        }
+        // Everything else is solved again.
+        for k in 0..6 {
+            let mut moved = p.to_vec();
+            moved[k] *= 1.001;
+            assert!(!model.solves_alike(&p, &moved), "parameter {k}");
+        }
+        // Solutions without the slab do not serve a point that weighs it.
+        let mut planar = p.to_vec();
+        planar[6] = 0.0;
+        let (_, without) = forward
+            .predict_from(&model, &planar, &obs, Start::Cold)
+            .unwrap();
+        assert!(without.serve(&model, &planar));
+        assert!(!without.serve(&model, &p));
     }
 
     /// Without a foundation the slab is its upper half; any foundation

@@ -116,6 +116,22 @@ impl Model {
         }
     }
 
+    /// Whether `a` and `b` differ only in parameters of effects that act
+    /// after the solves ([`Effect::acts_after_solves`]): the bodies'
+    /// solutions at one are then those at the other.
+    pub fn solves_alike(&self, a: &[f64], b: &[f64]) -> bool {
+        (0..self.len()).all(|k| {
+            a[k] == b[k]
+                || self
+                    .offsets
+                    .windows(2)
+                    .zip(&self.effects)
+                    .any(|(span, effect)| {
+                        (span[0]..span[1]).contains(&k) && effect.acts_after_solves()
+                    })
+        })
+    }
+
     /// The effects with their own parameter slices.
     pub fn effects_with<'a>(
         &'a self,

@@ -21,6 +21,10 @@ impl Effect for LensDistortion {
         "residual field radial about the image centre, growing with radius"
     }
 
+    fn acts_after_solves(&self) -> bool {
+        true
+    }
+
     fn parameters(&self, _geometry: &Geometry) -> Vec<EffectParameter> {
         vec![EffectParameter {
             name: "lens_radial_error".into(),

@@ -196,6 +196,19 @@ pub trait Effect: Send + Sync {
         0.0
     }
 
+    /// Whether the effect acts only on what is done with the bodies'
+    /// solutions, the blend of the plane and slab predictions
+    /// ([`Effect::slab_weight`]) or the measurement map
+    /// ([`Effect::measured_position`]), and on nothing the solves take:
+    /// no stiffness factor, supports, shaft density or neo-Hookean weight.
+    /// The finite-difference columns of its parameters then take the base
+    /// point's solutions instead of solving again. `false`, the default,
+    /// is always right, only slower; a unit test checks the catalog's
+    /// claims.
+    fn acts_after_solves(&self) -> bool {
+        false
+    }
+
     /// Maps a true marker position on the top face to what the measurement
     /// reports (e.g. through an uncalibrated lens).
     fn measured_position(
@@ -240,5 +253,58 @@ mod tests {
             assert_eq!(lookup(a.id()).map(|e| e.id()), Some(a.id()));
         }
         assert!(lookup("no_such_effect").is_none());
+    }
+
+    #[test]
+    fn effects_that_act_after_the_solves_leave_everything_the_solves_take() {
+        let geometry = Geometry {
+            width: 0.075,
+            depth: 0.075,
+            thickness: 0.0075,
+            image_centre: [0.0375, 0.0375],
+            image_radius: 0.04,
+        };
+        let after: Vec<_> = catalog()
+            .into_iter()
+            .filter(|e| e.acts_after_solves())
+            .collect();
+        let ids: Vec<_> = after.iter().map(|e| e.id()).collect();
+        assert_eq!(ids, ["lens_distortion", "out_of_plane"]);
+        for effect in &after {
+            let specs = effect.parameters(&geometry);
+            for multiple in [0.0, 0.3, 1.0, 2.5] {
+                let p: Vec<f64> = specs
+                    .iter()
+                    .map(|s| {
+                        let v = s.initial + multiple * s.scale;
+                        v.clamp(s.lower.unwrap_or(v), s.upper.unwrap_or(v))
+                    })
+                    .collect();
+                for (kind, velocity, day) in [
+                    (TrialKind::Probe, 0.002, 0.0),
+                    (TrialKind::Needle, 0.009, 3.0),
+                ] {
+                    let trial = TrialContext {
+                        kind,
+                        velocity,
+                        day,
+                    };
+                    for centroid in [[0.01, 0.02], [0.05, 0.07]] {
+                        let y = [centroid[1] - 0.001, centroid[1] + 0.001];
+                        assert_eq!(effect.stiffness_factor(&p, &trial, centroid, y), 1.0);
+                    }
+                    for (s, length) in [(0.0, 0.03), (0.01, 0.03), (0.049, 0.05)] {
+                        let point = ShaftPoint { s, length };
+                        assert_eq!(effect.shaft_density(&p, &trial, point), 0.0);
+                        assert_eq!(effect.shaft_density_factor(&p, &trial, point), 1.0);
+                    }
+                }
+                let mut supports = SupportSpec::default();
+                effect.supports(&p, &mut supports);
+                assert_eq!(supports, SupportSpec::default(), "{}", effect.id());
+                assert!(effect.shaft_breakpoints(&p, 0.05).is_empty());
+                assert_eq!(effect.nonlinear_weight(&p), 0.0, "{}", effect.id());
+            }
+        }
     }
 }

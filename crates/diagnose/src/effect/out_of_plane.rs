@@ -32,6 +32,10 @@ impl Effect for OutOfPlane {
          physical ranges (nu far below 0.45 for PVC)"
     }
 
+    fn acts_after_solves(&self) -> bool {
+        true
+    }
+
     fn parameters(&self, _geometry: &Geometry) -> Vec<EffectParameter> {
         vec![EffectParameter {
             name: "slab_weight".into(),
