@@ -226,15 +226,20 @@ pub trait Effect: Send + Sync {
 mod tests {
     use super::*;
 
-    #[test]
-    fn catalog_ids_are_unique_and_parameters_valid() {
-        let geometry = Geometry {
+    /// The paper's phantom with its 21 x 21 marker field.
+    fn paper_geometry() -> Geometry {
+        Geometry {
             width: 0.075,
             depth: 0.075,
             thickness: 0.0075,
             image_centre: [0.0375, 0.0375],
             image_radius: 0.04,
-        };
+        }
+    }
+
+    #[test]
+    fn catalog_ids_are_unique_and_parameters_valid() {
+        let geometry = paper_geometry();
         let effects = catalog();
         for (i, a) in effects.iter().enumerate() {
             for b in &effects[i + 1..] {
@@ -257,13 +262,7 @@ mod tests {
 
     #[test]
     fn effects_that_act_after_the_solves_leave_everything_the_solves_take() {
-        let geometry = Geometry {
-            width: 0.075,
-            depth: 0.075,
-            thickness: 0.0075,
-            image_centre: [0.0375, 0.0375],
-            image_radius: 0.04,
-        };
+        let geometry = paper_geometry();
         let after: Vec<_> = catalog()
             .into_iter()
             .filter(|e| e.acts_after_solves())
