@@ -84,8 +84,8 @@
 //!   costliest work of a step, and the score is the local form of the
 //!   likelihood ratio, so a candidate far behind by score is hardly the
 //!   one that explains most by refit, nor one that could be named. Refits
-//!   stop at a relative tolerance of $10^{-5}$ (their likelihood ratio is
-//!   then a lower bound), and their Jacobians place the needle loads from
+//!   stop once a step lowers $\chi^2$ by less than $10^{-4}\chi^2$ (their
+//!   likelihood ratio is then a lower bound), and their Jacobians place the needle loads from
 //!   the base point's placements in one round (within 2.5% of the model's
 //!   own derivative, for fewer back-substitutions; see `fit::Precision`);
 //!   the model that continues the ladder is refitted to $10^{-8}$ with

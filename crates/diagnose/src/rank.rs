@@ -8,7 +8,8 @@
 //! $U = J_\psi^T r$ (the gradient of $\tfrac12|r|^2$) and the efficient
 //! information $I = \tilde J_\psi^T \tilde J_\psi$ with
 //! $\tilde J_\psi = (1 - P_\theta) J_\psi$, $P_\theta$ the projector on the
-//! columns of $J_\theta$ (the current parameters re-adjust). The statistic
+//! columns of $J_\theta$ (the current parameters re-adjust, all but the
+//! probe's contact width, which the refits hold as well). The statistic
 //! $S = U^T I^{+} U$ is $\chi^2_k$ under the null (the model is right and
 //! the noise as stated), $k$ the number of tested parameters. When the
 //! only tested parameter sits on a bound at its null value and the score
@@ -131,9 +132,14 @@ impl CurrentJacobian {
         let residuals = context.whitening.apply(&fitted.residuals);
         let placements = &fitted.placements;
         let near = context.whitened_near(current, placements, at, RANKING_NEAR_ROUNDS)?;
+        // The refits hold the probe's contact width (see `refit_all`), so
+        // the score test must not let it re-adjust either: the score is
+        // then the local prediction of the refit's likelihood ratio, and
+        // its step starts the refit at the width the refit keeps.
         let free: Vec<usize> = (0..current.len())
             .filter(|&k| {
-                fitted.report.uncertainty.status[k] == needle_lsq::ParameterStatus::Estimated
+                k != PROBE_WIDTH
+                    && fitted.report.uncertainty.status[k] == needle_lsq::ParameterStatus::Estimated
             })
             .collect();
         let base = Base {

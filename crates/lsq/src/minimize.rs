@@ -16,7 +16,13 @@ use crate::uncertainty::{AtOptimum, CovarianceScaling, Uncertainty, estimate};
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Options {
     /// Stop when the actual and predicted relative cost reductions of a
-    /// step are both below this.
+    /// step are both below this. MINPACK also asks that the actual be at
+    /// most twice the predicted; that is left out, as SciPy's trust-region
+    /// solvers leave it out: at reductions this small the ratio of the two
+    /// reflects the residuals' own rounding and inner tolerances (a model
+    /// with an iterative inner solve), and the fits of needle-diagnose
+    /// took two to four more Jacobians chasing ratios of 2 to 40 between
+    /// reductions below $10^{-8}$ of the cost.
     pub function_tolerance: f64,
     /// Stop when the trust radius `Δ <= step_tolerance · |D u|`.
     pub step_tolerance: f64,
@@ -354,7 +360,6 @@ impl LevenbergMarquardt {
                     Some(Termination::ZeroCost)
                 } else if actual.abs() <= options.function_tolerance
                     && predicted <= options.function_tolerance
-                    && 0.5 * ratio <= 1.0
                 {
                     Some(Termination::CostReduction)
                 } else if radius <= options.step_tolerance * scaled_position {

@@ -13,12 +13,22 @@
 //! Each map is smooth and reaches its bound only at a stationary point of
 //! `p(u)` (`u = 0` or `u = ±pi/2`), where `dp/du = 0`. A start exactly on a
 //! bound would therefore never move; it is moved [`START_OFFSET`] internal
-//! units inside.
+//! units inside, and so is one within [`ON_BOUND`] of it (rounding: a
+//! fit that ended on the bound). A start further inside keeps its value:
+//! the inverses are written so that `p(u(p))` returns it to rounding
+//! (`d = sqrt(u^2 + 1) - 1` inverts as `u = sqrt(d (d + 2))`, and
+//! `(1 + sin u) / 2 = a` as `u = 2 asin(sqrt(a)) - pi/2`).
 
 use crate::parameter::Parameter;
 
 /// How far (in internal units) a start lying on a bound is moved inside.
 pub const START_OFFSET: f64 = 1e-2;
+
+/// A start closer than this to a bound, relative to the interval's width
+/// (one-sided: to the parameter's scale), is taken as lying on it: its
+/// internal coordinate would sit within $2\sqrt{10^{-10}} = 2 \cdot 10^{-5}$
+/// of the stationary point, where `dp/du` nearly vanishes.
+pub const ON_BOUND: f64 = 1e-10;
 
 /// The map from the internal coordinate of one free parameter to its value.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -86,16 +96,25 @@ impl Transform {
     }
 
     /// The internal coordinate of a value inside the bounds; values on a
-    /// bound map [`START_OFFSET`] inside it.
+    /// bound (within [`ON_BOUND`]) or beyond it map [`START_OFFSET`]
+    /// inside it.
     pub fn internal(&self, p: f64) -> f64 {
         match *self {
             Self::Unbounded { scale } => p / scale,
             Self::Lower { lower, scale } => one_sided_inverse((p - lower) / scale),
             Self::Upper { upper, scale } => one_sided_inverse((upper - p) / scale),
             Self::Interval { lower, upper } => {
-                let sine = (2.0 * (p - lower) / (upper - lower) - 1.0).clamp(-1.0, 1.0);
-                let limit = std::f64::consts::FRAC_PI_2 - START_OFFSET;
-                sine.asin().clamp(-limit, limit)
+                use std::f64::consts::FRAC_PI_2;
+                let share = (p - lower) / (upper - lower);
+                if share <= ON_BOUND {
+                    START_OFFSET - FRAC_PI_2
+                } else if share >= 1.0 - ON_BOUND {
+                    FRAC_PI_2 - START_OFFSET
+                } else if share <= 0.5 {
+                    2.0 * share.sqrt().asin() - FRAC_PI_2
+                } else {
+                    FRAC_PI_2 - 2.0 * (1.0 - share).sqrt().asin()
+                }
             }
         }
     }
@@ -115,8 +134,12 @@ impl Transform {
     }
 }
 
-/// Inverse of `d = sqrt(u^2 + 1) - 1` on the branch `u >= START_OFFSET`.
+/// Inverse of `d = sqrt(u^2 + 1) - 1` on the branch `u > 0`, and
+/// [`START_OFFSET`] for `d <= ON_BOUND` (on the bound, or beyond it).
 fn one_sided_inverse(distance: f64) -> f64 {
-    let cosh_like = distance.max(0.0) + 1.0;
-    ((cosh_like * cosh_like - 1.0).sqrt()).max(START_OFFSET)
+    if distance > ON_BOUND {
+        (distance * (distance + 2.0)).sqrt()
+    } else {
+        START_OFFSET
+    }
 }

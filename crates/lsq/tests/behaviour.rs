@@ -131,6 +131,82 @@ fn a_start_on_a_bound_still_moves() {
     );
 }
 
+/// Records the parameters of its first evaluation.
+struct FirstEvaluation {
+    line: Line,
+    first: std::sync::Mutex<Option<Vec<f64>>>,
+}
+
+impl Problem for FirstEvaluation {
+    fn num_parameters(&self) -> usize {
+        2
+    }
+    fn num_residuals(&self) -> usize {
+        self.line.num_residuals()
+    }
+    fn residuals(&self, p: &[f64], out: &mut [f64]) -> Result<(), EvaluationError> {
+        self.first.lock().unwrap().get_or_insert_with(|| p.to_vec());
+        self.line.residuals(p, out)
+    }
+}
+
+#[test]
+fn a_start_next_to_a_bound_is_evaluated_where_it_was_given() {
+    // A start a millionth of the interval above its lower bound (as a
+    // score test's step towards a small support compliance gives): it once
+    // became 2.5e-5 of the width, 25 times further from the bound.
+    for (lower, upper, start) in [
+        (0.0, 5.0, 5e-6),
+        (0.0, 5.0, 5.0 - 5e-6),
+        (-1.0, 3.0, -1.0 + 1e-8),
+    ] {
+        for bounded in [
+            Parameter::new("slope", start).with_bounds(lower, upper),
+            Parameter::new("slope", start).with_lower(lower),
+        ] {
+            let problem = FirstEvaluation {
+                line: Line::new(1.0, 3.0),
+                first: std::sync::Mutex::new(None),
+            };
+            LevenbergMarquardt::default()
+                .minimize(&problem, &[Parameter::new("intercept", 0.0), bounded])
+                .unwrap();
+            let first = problem.first.lock().unwrap().clone().unwrap();
+            let distance = (start - lower).min(upper - start);
+            let ulps = 4.0 * f64::EPSILON * start.abs();
+            assert!(
+                (first[1] - start).abs() <= 1e-6 * distance + ulps,
+                "start {start} in [{lower}, {upper}] evaluated at {}",
+                first[1]
+            );
+        }
+    }
+}
+
+#[test]
+fn a_start_on_a_bound_to_rounding_still_moves() {
+    // As a fit that ended on the bound hands its value to the next one.
+    let problem = Line::new(1.0, 3.0);
+    for (slope, expected) in [
+        (
+            Parameter::new("slope", 5.0 - 6e-14).with_bounds(0.0, 5.0),
+            3.0,
+        ),
+        (Parameter::new("slope", 2.0 + 6e-14).with_lower(2.0), 3.0),
+    ] {
+        let parameters = [Parameter::new("intercept", 0.0), slope];
+        let report = LevenbergMarquardt::default()
+            .minimize(&problem, &parameters)
+            .unwrap();
+        assert!(
+            (report.params[1] - expected).abs() < 1e-6,
+            "{:?}: {}",
+            parameters[1],
+            report.params[1]
+        );
+    }
+}
+
 #[test]
 fn fixed_parameters_stay_fixed_and_the_others_fit_around_them() {
     let problem = Line::new(1.0, 3.0);
@@ -351,6 +427,36 @@ fn a_point_where_every_trial_fails_is_kept() {
 
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// A value next to a bound maps back to itself to a small part of its
+    /// distance from the bound.
+    #[test]
+    fn transforms_keep_a_value_next_to_a_bound(
+        lower in -1e3..1e3f64,
+        width in 1e-3..1e3f64,
+        exponent in -9.0..-2.0f64,
+        from_upper in any::<bool>(),
+    ) {
+        use needle_lsq::transform::Transform;
+        let upper = lower + width;
+        let distance = width * 10f64.powf(exponent);
+        let value = if from_upper { upper - distance } else { lower + distance };
+        let scale = width;
+        let one_sided = if from_upper {
+            Transform::Upper { upper, scale }
+        } else {
+            Transform::Lower { lower, scale }
+        };
+        for transform in [Transform::Interval { lower, upper }, one_sided] {
+            let back = transform.external(transform.internal(value));
+            // Rounding of the bound itself: a few ulps of its magnitude.
+            let ulps = 8.0 * f64::EPSILON * lower.abs().max(upper.abs());
+            prop_assert!(
+                (back - value).abs() <= 1e-6 * distance + ulps,
+                "{transform:?}: {back} vs {value}"
+            );
+        }
+    }
 
     /// The bound transforms map back and forth and never leave the box.
     #[test]
