@@ -99,7 +99,7 @@ struct Evaluation {
     placements: Arc<Placements>,
 }
 
-struct FitProblem<'a> {
+pub(crate) struct FitProblem<'a> {
     pub context: &'a Context,
     pub model: &'a Model,
     /// Rounds of the Jacobian's columns from the base point's placements.

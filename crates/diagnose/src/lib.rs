@@ -85,9 +85,10 @@
 //!   likelihood ratio, so a candidate far behind by score is hardly the
 //!   one that explains most by refit, nor one that could be named. Refits
 //!   stop once a step lowers $\chi^2$ by less than $10^{-4}\chi^2$ (their
-//!   likelihood ratio is then a lower bound), and their Jacobians place the needle loads from
-//!   the base point's placements in one round (within 2.5% of the model's
-//!   own derivative, for fewer back-substitutions; see `fit::Precision`);
+//!   likelihood ratio is then a lower bound), and their Jacobians place
+//!   the needle loads from the base point's placements in one round
+//!   (within 2.5% of the model's own derivative, for fewer
+//!   back-substitutions; see `fit::Precision`);
 //!   the model that continues the ladder is refitted to $10^{-8}$ with
 //!   columns placed in two rounds (within 1%).
 //!
