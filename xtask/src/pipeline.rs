@@ -19,12 +19,17 @@
 //!    the measured markers (the paper's Fig. 16; in-sample, since the
 //!    fitted model saw those markers);
 //! 6. everything goes into one offline HTML report.
+//!
+//! Steps 2b to 4 need the bundle and the truth but nothing from step 5, and
+//! step 5 needs only the bundle, so once the bundle is read the two branches
+//! run side by side on the machine's two cores; the report keeps the order
+//! above.
 
 use std::path::PathBuf;
 use std::time::Instant;
 
 use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use needle_data::{BundleError, LoadedBundle, TrialKind, read_bundle};
 use needle_diagnose::{DiagnoseOptions, ModelSpec, diagnose, write_outputs};
 use needle_fem::Material;
@@ -83,9 +88,10 @@ pub fn run(args: &PipelineArgs) -> Result<(), String> {
         None if args.quick => Scenario::quick(),
         None => Scenario::paper_default(),
     };
+    let bars = MultiProgress::new();
     let mut stages = StageTimes::default();
     let truth = stages.time("truth world", || {
-        synthesise(&scenario, &folder, &mut report)
+        synthesise(&scenario, &folder, &mut report, &bars)
     })?;
     let bundle = stages.time("bundle: read, validate, plot", || {
         let bundle = read_bundle(folder.file("bundle")).map_err(|e| match e {
@@ -97,19 +103,53 @@ pub fn run(args: &PipelineArgs) -> Result<(), String> {
         measured_deformation(&bundle, &folder, &mut report)?;
         Ok::<_, String>(bundle)
     })?;
-    stages.time("camera: calibrate, track", || {
-        track_camera_frames(&bundle, &truth, &mut report)
-    })?;
-    let material = stages.time("identification", || identify(&bundle, &truth, &mut report))?;
-    stages.time("force inversion", || {
-        invert_forces(&bundle, material, args.quick, &folder, &mut report)
-    })?;
-    stages.time("diagnosis and simulation", || {
-        diagnose_stage(&folder, args.quick, scenario.needles.radius, &mut report)
-    })?;
+    // The diagnosis reads the bundle alone, so it runs beside the camera,
+    // identification and force stages: it keeps both cores busy only part
+    // of the time, and they fill the rest. faer runs sequentially in both
+    // branches, which already share the two cores.
+    sequential_linear_algebra();
+    let (upstream, diagnosis) = std::thread::scope(|scope| {
+        let diagnosis = scope.spawn(|| {
+            let mut section = Report::default();
+            let mut times = StageTimes::default();
+            let outcome = times.time("diagnosis and simulation", || {
+                diagnose_stage(
+                    &folder,
+                    args.quick,
+                    scenario.needles.radius,
+                    &mut section,
+                    &bars,
+                )
+            });
+            (outcome, section, times)
+        });
+        let mut sections = Report::default();
+        let mut times = StageTimes::default();
+        let outcome = (|| {
+            times.time("camera: calibrate, track", || {
+                track_camera_frames(&bundle, &truth, &mut sections, &bars)
+            })?;
+            let material = times.time("identification", || {
+                identify(&bundle, &truth, &mut sections, &bars)
+            })?;
+            times.time("force inversion", || {
+                invert_forces(&bundle, material, args.quick, &folder, &mut sections, &bars)
+            })
+        })();
+        let diagnosis = diagnosis
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        ((outcome, sections, times), diagnosis)
+    });
+    for (outcome, sections, times) in [upstream, diagnosis] {
+        outcome?;
+        report.append(sections);
+        stages.0.extend(times.0);
+    }
     stages.print();
     report.table(
-        "Run time per stage",
+        "Run time per stage (the camera, identification and force inversion \
+         ran beside the diagnosis)",
         &["stage", "wall time (s)"],
         &stages.rows(),
     );
@@ -150,8 +190,8 @@ impl StageTimes {
     }
 }
 
-fn spinner(message: &str) -> ProgressBar {
-    let bar = ProgressBar::new_spinner();
+fn spinner(bars: &MultiProgress, message: &str) -> ProgressBar {
+    let bar = bars.add(ProgressBar::new_spinner());
     bar.set_style(
         ProgressStyle::with_template("{spinner} [{elapsed}] {msg}")
             .unwrap_or_else(|_| ProgressStyle::default_spinner()),
@@ -166,8 +206,12 @@ fn synthesise(
     scenario: &Scenario,
     folder: &OutputFolder,
     report: &mut Report,
+    bars: &MultiProgress,
 ) -> Result<GroundTruth, String> {
-    let bar = spinner(&format!("truth world: generating {:?}", scenario.name));
+    let bar = spinner(
+        bars,
+        &format!("truth world: generating {:?}", scenario.name),
+    );
     let progress = |stage: Stage| bar.set_message(format!("truth world: {stage:?}"));
     let truth_path = folder.file("truth.ron");
     let summary = generate(scenario, &folder.file("bundle"), &truth_path, progress)
@@ -210,6 +254,7 @@ fn track_camera_frames(
     bundle: &LoadedBundle,
     truth: &GroundTruth,
     report: &mut Report,
+    bars: &MultiProgress,
 ) -> Result<(), String> {
     let with_frames: Vec<&str> = bundle
         .campaign
@@ -221,7 +266,7 @@ fn track_camera_frames(
     if with_frames.is_empty() {
         return Ok(());
     }
-    let bar = spinner("camera: calibrating from calibration/");
+    let bar = spinner(bars, "camera: calibrating from calibration/");
     let Some(calibration) = calibrate_from_bundle(&bundle.root).map_err(|e| e.to_string())? else {
         bar.finish_with_message("camera: frames but no calibration/ folder; not tracked");
         return Ok(());
@@ -396,8 +441,12 @@ fn identify(
     bundle: &LoadedBundle,
     truth: &GroundTruth,
     report: &mut Report,
+    bars: &MultiProgress,
 ) -> Result<Material, String> {
-    let bar = spinner("identification: E and nu from the probing trials (3-D slab model)");
+    let bar = spinner(
+        bars,
+        "identification: E and nu from the probing trials (3-D slab model)",
+    );
     // The truth is a 3-D slab: the plane model would misread nu (see
     // docs/identification.md); the force record is smoothed over +-0.5 s.
     let options = IdentifyOptions {
@@ -498,6 +547,7 @@ fn invert_forces(
     quick: bool,
     folder: &OutputFolder,
     report: &mut Report,
+    bars: &MultiProgress,
 ) -> Result<(), String> {
     let campaign = &bundle.campaign;
     let mut needle_trials: Vec<_> = campaign
@@ -522,7 +572,7 @@ fn invert_forces(
         },
         None => Regularisation::Gcv,
     };
-    let bar = ProgressBar::new(needle_trials.len() as u64);
+    let bar = bars.add(ProgressBar::new(needle_trials.len() as u64));
     bar.set_style(
         ProgressStyle::with_template("force inversion [{bar:30}] {pos}/{len} {msg}")
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
@@ -672,8 +722,9 @@ fn diagnose_stage(
     quick: bool,
     needle_radius: f64,
     report: &mut Report,
+    bars: &MultiProgress,
 ) -> Result<(), String> {
-    let bar = spinner("diagnosis: fit, rank the missing effects, add, refit");
+    let bar = spinner(bars, "diagnosis: fit, rank the missing effects, add, refit");
     let options = DiagnoseOptions {
         add_recommended: true,
         frames_per_trial: if quick { 2 } else { DIAGNOSIS_FRAMES_PER_TRIAL },
@@ -685,14 +736,13 @@ fn diagnose_stage(
         slab_needle_grading: !quick,
         ..DiagnoseOptions::default()
     };
-    sequential_linear_algebra();
     let run = diagnose(&folder.file("bundle"), &ModelSpec::baseline(), &options)
         .map_err(|e| format!("diagnosis: {e}"))?;
     bar.finish_with_message(format!(
         "diagnosis: model {:?}, verdict {:?}",
         run.diagnosis.model, run.diagnosis.verdict
     ));
-    print_ladder(&run);
+    bars.suspend(|| print_ladder(&run));
     write_outputs(&run, &folder.file("diagnosis")).map_err(|e| format!("diagnosis: {e}"))?;
     add_sections(report, &run, "5.")?;
     // Fig. 16: node error of the fitted model's simulation of each insertion.

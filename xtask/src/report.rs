@@ -45,6 +45,11 @@ impl Report {
         self.sections.push(html);
     }
 
+    /// Adds every section of `other` after this report's.
+    pub fn append(&mut self, other: Report) {
+        self.sections.extend(other.sections);
+    }
+
     /// The whole document.
     pub fn to_html(&self, title: &str) -> String {
         let mut html = format!(
