@@ -1308,9 +1308,9 @@ pub(crate) mod tests {
         // measured length is inserted.
         obs.frames.retain(|f| !matches!(f.load, Load::Needle(_)));
         let model = with_effect(&forward, start, "tip_cutting_force");
-        // q0 = 10 N/m, peak twice that (relative 2) over 5 mm:
-        // F = 10 L + 20 * 0.005 / 2.
-        let p = [25.0e3, 0.45, 10.0, 0.002, 2.0, 0.005];
+        // q0 = 10 N/m, peak twice that (relative 2) over 5 mm, so an
+        // excess length of 5 mm: F = 10 L + 20 * 0.005 / 2.
+        let p = [25.0e3, 0.45, 10.0, 0.002, 0.005, 0.005];
         let values = forward.predict(&model, &p, &obs).unwrap().values;
         let m = obs.marker_count();
         let length = 0.04 / 0.1f64.cos();
@@ -1321,7 +1321,7 @@ pub(crate) mod tests {
 
     /// The tip peak multiplies the friction density: with friction that
     /// grows with speed the peak grows with it,
-    /// $F = (q_0 + q_1 v)(L + A w / 2)$.
+    /// $F = (q_0 + q_1 v)(L + e)$, $e = A w / 2$ the peak's excess length.
     #[test]
     fn the_tip_peak_scales_with_the_speed_dependent_friction() {
         let (_, forward, start) = paper_forward();
@@ -1330,8 +1330,9 @@ pub(crate) mod tests {
             start,
             &["velocity_dependent_friction", "tip_cutting_force"],
         );
-        // q0 = 10 N/m, q1 = 500 N s/m^2, peak of relative height 1 over 6 mm.
-        let p = [25.0e3, 0.45, 10.0, 0.002, 500.0, 1.0, 0.006];
+        // q0 = 10 N/m, q1 = 500 N s/m^2, peak of relative height 1 over 6 mm
+        // (an excess length of 3 mm).
+        let p = [25.0e3, 0.45, 10.0, 0.002, 500.0, 0.003, 0.006];
         let length = 0.03;
         for velocity in [0.001, 0.009] {
             let trial = TrialContext {
@@ -1363,7 +1364,7 @@ pub(crate) mod tests {
     fn the_dragged_entry_shortens_the_inserted_shaft() {
         let (obs, forward, start) = paper_forward();
         let model = with_effect(&forward, start, "tip_cutting_force");
-        let p = [25.0e3, 0.45, 10.0, 0.002, 2.0, 0.005];
+        let p = [25.0e3, 0.45, 10.0, 0.002, 0.005, 0.005];
         let values = forward.predict(&model, &p, &obs).unwrap().values;
         let m = obs.marker_count();
         let length = 0.04 / 0.1f64.cos();
@@ -1392,7 +1393,7 @@ pub(crate) mod tests {
         let model = with_effect(&forward, start, "tip_cutting_force");
         // The paper's phantom and a tip peak: the shaft drags the entry
         // in by about 2 mm.
-        let p = [25.0e3, 0.45, 10.0, 0.002, 2.0, 0.005];
+        let p = [25.0e3, 0.45, 10.0, 0.002, 0.005, 0.005];
         let m = obs.marker_count();
         let used = forward.predict(&model, &p, &obs).unwrap().values;
         forward.placement_rounds = 12;
@@ -1454,7 +1455,7 @@ pub(crate) mod tests {
     fn differences_placed_from_the_base_are_within(rounds: usize, marker: f64, force: f64) {
         let (obs, forward, start) = paper_forward();
         let model = with_effects(&forward, start, &["tip_cutting_force", "out_of_plane"]);
-        let p = [25.0e3, 0.45, 10.0, 0.002, 2.0, 0.005, 0.7];
+        let p = [25.0e3, 0.45, 10.0, 0.002, 0.005, 0.005, 0.7];
         let (cold, placements) = forward.predict_from(&model, &p, &obs, Start::Cold).unwrap();
         let near = |p: &[f64]| {
             let start = Start::Near {
@@ -1512,7 +1513,7 @@ pub(crate) mod tests {
             start,
             &["tip_cutting_force", "out_of_plane", "lens_distortion"],
         );
-        let p = [25.0e3, 0.45, 10.0, 0.002, 2.0, 0.005, 0.7, 0.02];
+        let p = [25.0e3, 0.45, 10.0, 0.002, 0.005, 0.005, 0.7, 0.02];
         let (_, cold) = forward.predict_from(&model, &p, &obs, Start::Cold).unwrap();
         let near = Start::Near {
             placements: &cold,

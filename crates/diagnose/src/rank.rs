@@ -523,8 +523,8 @@ mod tests {
     #[test]
     fn the_score_test_s_step_explains_most_of_an_effect_linear_in_its_parameter() {
         // Data made by the model itself with a tip peak (at a given shaft
-        // density the load is linear in its amplitude): from the
-        // baseline's fit, one Gauss-Newton step of the amplitude, with the
+        // density the load is linear in its excess length): from the
+        // baseline's fit, one Gauss-Newton step of the excess, with the
         // baseline's parameters re-adjusting, must remove nearly all the
         // misfit the missing peak leaves.
         let (obs, forward, start) = paper_forward_of(observations_of(&[
@@ -540,7 +540,9 @@ mod tests {
         )
         .unwrap();
         let mut p_true: Vec<f64> = truth.parameters.iter().map(|p| p.initial).collect();
-        p_true[crate::model::BASELINE_PARAMETERS] = 1.5;
+        // A peak 1.5 times the shaft density over the initial 5 mm width.
+        let excess = 1.5 * 0.005 / 2.0;
+        p_true[crate::model::BASELINE_PARAMETERS] = excess;
         let measured = forward.predict(&truth, &p_true, &obs).unwrap().values;
         let context = Context {
             whitening: Whitening::independent(obs.marker_count(), 1e-6, &obs.row_sigmas(), 1e-4),
@@ -568,8 +570,11 @@ mod tests {
             "one step leaves {stepped} of {}",
             fitted.chi2
         );
-        let amplitude = score.one_step[crate::model::BASELINE_PARAMETERS];
-        assert!((amplitude - 1.5).abs() < 0.15, "amplitude {amplitude}");
+        let stepped_excess = score.one_step[crate::model::BASELINE_PARAMETERS];
+        assert!(
+            (stepped_excess - excess).abs() < 0.1 * excess,
+            "excess {stepped_excess} against {excess}"
+        );
     }
 
     #[test]

@@ -104,7 +104,7 @@ pub struct EffectParameter {
     pub upper: Option<f64>,
     /// Whether the score test tests it. A shape parameter that matters only
     /// when another parameter is off its null (the width of a peak whose
-    /// amplitude is zero) is held at `initial` in the score test instead.
+    /// excess is zero) is held at `initial` in the score test instead.
     pub tested: bool,
     /// What it means, with its unit.
     pub meaning: &'static str,

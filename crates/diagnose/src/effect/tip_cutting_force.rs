@@ -10,6 +10,14 @@ use super::{Effect, EffectParameter, Geometry, ShaftPoint, TrialContext};
 /// with whatever the friction density is in the trial (a faster insertion
 /// grips harder along the whole shaft, the tip included), and adds
 /// $A\,q\,w/2$ to the base force where the density $q$ is uniform.
+///
+/// The fitted parameters are the peak's excess length $e = A w / 2$ (the
+/// length of shaft whose friction the peak adds) and its width $w$, so
+/// $A = 2e/w$. The base force and the far markers see the added force
+/// $q\,e$ and hardly its shape, so in $(A, w)$ the misfit has a long
+/// curved valley along $A w = \text{const}$: on the default campaign a
+/// refit from the score test's step walked down it in 9 Jacobians. In
+/// $(e, w)$ that valley lies along the $w$ axis.
 pub struct TipCuttingForce;
 
 impl Effect for TipCuttingForce {
@@ -28,15 +36,15 @@ impl Effect for TipCuttingForce {
     fn parameters(&self, _geometry: &Geometry) -> Vec<EffectParameter> {
         vec![
             EffectParameter {
-                name: "tip_amplitude".into(),
+                name: "tip_excess".into(),
                 null: 0.0,
                 initial: 0.0,
-                scale: 1.0,
+                scale: 0.0025,
                 lower: None,
                 upper: None,
                 tested: true,
-                meaning: "peak shaft force density at the tip relative to the shaft density \
-                          without the peak (1: twice it)",
+                meaning: "length of shaft whose friction the tip peak adds (m); the peak's \
+                          height relative to the shaft density is 2 tip_excess / tip_width",
             },
             EffectParameter {
                 name: "tip_width".into(),
@@ -57,7 +65,8 @@ impl Effect for TipCuttingForce {
         _trial: &TrialContext,
         point: ShaftPoint,
     ) -> f64 {
-        let (amplitude, width) = (parameters[0], parameters[1]);
+        let (excess, width) = (parameters[0], parameters[1]);
+        let amplitude = 2.0 * excess / width;
         1.0 + amplitude * (1.0 - (point.length - point.s) / width).max(0.0)
     }
 
@@ -83,7 +92,8 @@ mod tests {
     #[test]
     fn the_peak_is_relative_and_falls_to_one_a_width_behind_the_tip() {
         let (length, width) = (0.03, 0.004);
-        let p = [1.0, width];
+        // Excess length w/2: a peak as high as the shaft density.
+        let p = [0.5 * width, width];
         assert_eq!(factor(&p, length, length), 2.0);
         assert!((factor(&p, length - 0.5 * width, length) - 1.5).abs() < 1e-12);
         assert_eq!(factor(&p, length - width, length), 1.0);
