@@ -21,7 +21,11 @@
 //! (`place::RANKING_NEAR_ROUNDS`), as the refits' columns do.
 //!
 //! The Jacobian in the current parameters is the same for every candidate
-//! (each effect is silent at its null), so it is computed once per step.
+//! (each effect is silent at its null), so it is computed once per step,
+//! beside the candidates' own columns: those need only the current fit's
+//! residuals and placements, and the costliest of them (`platform_friction`
+//! solves the whole slab under a foundation) would otherwise start only
+//! once the shared columns are done.
 //!
 //! **Refit.** The best candidate by score is always refitted. Each other
 //! is refitted only if its score p-value is below 0.05 *and* its score is
@@ -109,29 +113,28 @@ const REFIT_SCORE_P: f64 = 0.05;
 /// likelihood ratio and the least one an effect is named with.
 const REFIT_SCORE_FRACTION: f64 = 0.1;
 
-/// The whitened residuals of the current fit and their Jacobian in the
-/// current model's free parameters: shared by every candidate's score test,
-/// since each effect is silent at its null (`forward` tests this), so the
+/// The whitened residuals of the current fit, and where the Jacobian's
+/// columns difference from: shared by every candidate's score test, since
+/// each effect is silent at its null (`forward` tests this), so the
 /// augmented models predict the same there.
 ///
 /// The differences start the needle placement from the current fit's own
 /// (see `fit`), so they difference the map that does that, whose value at
 /// the fit is `near`; the score is taken on the model's residuals proper.
-struct CurrentJacobian {
+struct CurrentPoint {
     residuals: Vec<f64>,
-    /// The current model's free parameters, in the order of `columns`.
+    /// The current model's free parameters, in the order of the columns.
     free: Vec<usize>,
-    columns: DMatrix<f64>,
     placements: Arc<Placements>,
     near: Vec<f64>,
 }
 
-impl CurrentJacobian {
+impl CurrentPoint {
     fn new(context: &Context, current: &Model, fitted: &Fitted) -> Result<Self, DiagnoseError> {
-        let at = &fitted.params;
         let residuals = context.whitening.apply(&fitted.residuals);
-        let placements = &fitted.placements;
-        let near = context.whitened_near(current, placements, at, RANKING_NEAR_ROUNDS)?;
+        let placements = Arc::clone(&fitted.placements);
+        let near =
+            context.whitened_near(current, &placements, &fitted.params, RANKING_NEAR_ROUNDS)?;
         // The refits hold the probe's contact width (see `refit_all`), so
         // the score test must not let it re-adjust either: the score is
         // then the local prediction of the refit's likelihood ratio, and
@@ -142,23 +145,36 @@ impl CurrentJacobian {
                     && fitted.report.uncertainty.status[k] == needle_lsq::ParameterStatus::Estimated
             })
             .collect();
-        let base = Base {
-            at,
-            placements,
-            residuals: &near,
-        };
-        let derivatives = free
-            .par_iter()
-            .map(|&k| forward_difference(context, current, &base, k, 1e-6))
-            .collect::<Result<Vec<_>, _>>()?;
-        let columns = DMatrix::from_fn(residuals.len(), free.len(), |i, j| derivatives[j][i]);
         Ok(Self {
             residuals,
             free,
-            columns,
-            placements: Arc::clone(placements),
+            placements,
             near,
         })
+    }
+
+    /// The Jacobian of the residuals in the free parameters.
+    fn jacobian(
+        &self,
+        context: &Context,
+        current: &Model,
+        at: &[f64],
+    ) -> Result<DMatrix<f64>, DiagnoseError> {
+        let base = Base {
+            at,
+            placements: &self.placements,
+            residuals: &self.near,
+        };
+        let derivatives = self
+            .free
+            .par_iter()
+            .map(|&k| forward_difference(context, current, &base, k, 1e-6))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(DMatrix::from_fn(
+            self.residuals.len(),
+            self.free.len(),
+            |i, j| derivatives[j][i],
+        ))
     }
 }
 
@@ -204,13 +220,23 @@ struct Score {
     one_step: Vec<f64>,
 }
 
-/// Score statistic of the effect that extends `current` to `augmented`.
-fn score_test(
+/// A candidate's tested parameters and the derivatives of the residuals
+/// in them at its null, from the current fit.
+struct TestedColumns {
+    /// The augmented model's parameters at the current fit, the effect's at
+    /// their null (tested) or initial value (untested).
+    at: Vec<f64>,
+    tested: Vec<usize>,
+    derivatives: Vec<Vec<f64>>,
+}
+
+/// The columns of the effect that extends the current model to `augmented`.
+fn tested_columns(
     context: &Context,
-    current: &CurrentJacobian,
+    point: &CurrentPoint,
     fitted: &Fitted,
     augmented: &Model,
-) -> Result<Score, DiagnoseError> {
+) -> Result<TestedColumns, DiagnoseError> {
     let n_current = fitted.params.len();
     let mut at: Vec<f64> = fitted.params.clone();
     at.extend(
@@ -218,7 +244,6 @@ fn score_test(
             .iter()
             .map(|p| if p.tested { p.null } else { p.initial }),
     );
-    let base = &current.residuals;
     let tested: Vec<usize> = (n_current..augmented.len())
         .filter(|&k| augmented.parameters[k].tested)
         .collect();
@@ -226,15 +251,38 @@ fn score_test(
     // loads where the current one does.
     let near = Base {
         at: &at,
-        placements: &current.placements,
-        residuals: &current.near,
+        placements: &point.placements,
+        residuals: &point.near,
     };
     let derivatives = tested
         .par_iter()
         .map(|&k| forward_difference(context, augmented, &near, k, 1e-3))
         .collect::<Result<Vec<_>, _>>()?;
+    Ok(TestedColumns {
+        at,
+        tested,
+        derivatives,
+    })
+}
+
+/// Score statistic of the effect whose columns are `columns`, with
+/// `jacobian` the current parameters' columns.
+fn score_test(
+    point: &CurrentPoint,
+    jacobian: &DMatrix<f64>,
+    fitted: &Fitted,
+    augmented: &Model,
+    columns: TestedColumns,
+) -> Result<Score, DiagnoseError> {
+    let n_current = fitted.params.len();
+    let TestedColumns {
+        at,
+        tested,
+        derivatives,
+    } = columns;
+    let base = &point.residuals;
     let m = base.len();
-    let jt = &current.columns;
+    let jt = jacobian;
     let jp = DMatrix::from_fn(m, tested.len(), |i, j| derivatives[j][i]);
     let coefficients = if jt.ncols() > 0 {
         let svd = jt.clone().svd(true, true);
@@ -281,7 +329,7 @@ fn score_test(
     let step_psi = -solved;
     let step_theta = &coefficients * &step_psi;
     let mut one_step = at;
-    for (j, &k) in current.free.iter().enumerate() {
+    for (j, &k) in point.free.iter().enumerate() {
         one_step[k] -= step_theta[j];
     }
     for (j, &k) in tested.iter().enumerate() {
@@ -324,40 +372,56 @@ pub(crate) fn rank_candidates(
     fitted: &Fitted,
     naming_ratio: f64,
 ) -> Result<Vec<Ranked>, DiagnoseError> {
-    let shared = CurrentJacobian::new(context, current, fitted)?;
-    // Candidates are scored side by side: each has only its one or two
-    // tested columns to run in parallel, and some solve bodies of their
-    // own (springs, the whole slab under a foundation).
-    let mut scored = crate::effect::catalog()
+    let point = CurrentPoint::new(context, current, fitted)?;
+    // Candidates are differenced side by side, and beside the current
+    // parameters' columns: each has only its one or two tested columns to
+    // run in parallel, and some solve bodies of their own (springs, the
+    // whole slab under a foundation).
+    let (jacobian, differenced) = rayon::join(
+        || point.jacobian(context, current, &fitted.params),
+        || {
+            crate::effect::catalog()
+                .into_par_iter()
+                .filter(|effect| !current.spec.effects.iter().any(|id| id == effect.id()))
+                .map(|effect| -> Result<_, DiagnoseError> {
+                    let spec = current.spec.with(effect.id());
+                    let start = current.baseline(&fitted.params);
+                    let augmented = Model::new(&spec, &context.forward.geometry, start)?;
+                    let columns = tested_columns(context, &point, fitted, &augmented)?;
+                    Ok((effect.id(), spec, augmented, columns))
+                })
+                .collect::<Result<Vec<_>, _>>()
+        },
+    );
+    let jacobian = jacobian?;
+    let mut scored = differenced?
         .into_par_iter()
-        .filter(|effect| !current.spec.effects.iter().any(|id| id == effect.id()))
-        .map(|effect| -> Result<_, DiagnoseError> {
-            let spec = current.spec.with(effect.id());
-            let start = current.baseline(&fitted.params);
-            let augmented = Model::new(&spec, &context.forward.geometry, start)?;
-            let Score {
-                statistic: score,
-                rank: score_dof,
-                one_step,
-            } = score_test(context, &shared, fitted, &augmented)?;
-            Ok(Scored {
-                candidate: Candidate {
-                    effect: effect.id().to_string(),
-                    score,
-                    score_p: chi2_upper_tail(score, score_dof),
-                    score_dof,
-                    refitted: false,
-                    likelihood_ratio: None,
-                    likelihood_ratio_p: None,
-                    aic: None,
-                    bic: None,
-                    fit_with: fitted.fit,
-                },
-                spec,
-                augmented,
-                one_step,
-            })
-        })
+        .map(
+            |(id, spec, augmented, columns)| -> Result<_, DiagnoseError> {
+                let Score {
+                    statistic: score,
+                    rank: score_dof,
+                    one_step,
+                } = score_test(&point, &jacobian, fitted, &augmented, columns)?;
+                Ok(Scored {
+                    candidate: Candidate {
+                        effect: id.to_string(),
+                        score,
+                        score_p: chi2_upper_tail(score, score_dof),
+                        score_dof,
+                        refitted: false,
+                        likelihood_ratio: None,
+                        likelihood_ratio_p: None,
+                        aic: None,
+                        bic: None,
+                        fit_with: fitted.fit,
+                    },
+                    spec,
+                    augmented,
+                    one_step,
+                })
+            },
+        )
         .collect::<Result<Vec<_>, _>>()?;
     // p-values underflow to 0 for large scores: those tie-break by score.
     scored.sort_by(|a, b| {
@@ -553,8 +617,10 @@ mod tests {
         let baseline = Model::new(&ModelSpec::baseline(), geometry, start).unwrap();
         let fitted = fit_model(&context, &baseline, &[], &[], Precision::Model).unwrap();
         assert!(fitted.chi2 > 100.0, "the effect is seen: {}", fitted.chi2);
-        let shared = CurrentJacobian::new(&context, &baseline, &fitted).unwrap();
-        let score = score_test(&context, &shared, &fitted, &truth).unwrap();
+        let point = CurrentPoint::new(&context, &baseline, &fitted).unwrap();
+        let jacobian = point.jacobian(&context, &baseline, &fitted.params).unwrap();
+        let columns = tested_columns(&context, &point, &fitted, &truth).unwrap();
+        let score = score_test(&point, &jacobian, &fitted, &truth, columns).unwrap();
         let chi2 = |p: &[f64]| -> f64 {
             let (residuals, _) = context.evaluate(&truth, p, Start::Cold).unwrap();
             context
