@@ -153,13 +153,14 @@ impl CurrentPoint {
         })
     }
 
-    /// The Jacobian of the residuals in the free parameters.
+    /// The Jacobian of the residuals in the free parameters, with its
+    /// pseudo-inverse.
     fn jacobian(
         &self,
         context: &Context,
         current: &Model,
         at: &[f64],
-    ) -> Result<DMatrix<f64>, DiagnoseError> {
+    ) -> Result<CurrentColumns, DiagnoseError> {
         let base = Base {
             at,
             placements: &self.placements,
@@ -170,12 +171,33 @@ impl CurrentPoint {
             .par_iter()
             .map(|&k| forward_difference(context, current, &base, k, 1e-6))
             .collect::<Result<Vec<_>, _>>()?;
-        Ok(DMatrix::from_fn(
-            self.residuals.len(),
-            self.free.len(),
-            |i, j| derivatives[j][i],
-        ))
+        let columns = DMatrix::from_fn(self.residuals.len(), self.free.len(), |i, j| {
+            derivatives[j][i]
+        });
+        let pseudo_inverse = if columns.ncols() > 0 {
+            let svd = columns.clone().svd(true, true);
+            let tolerance = 1e-10 * svd.singular_values.max();
+            svd.pseudo_inverse(tolerance)
+                .map_err(|e| DiagnoseError::InvalidOption {
+                    field: "score test",
+                    reason: e.to_string(),
+                })?
+        } else {
+            DMatrix::zeros(0, columns.nrows())
+        };
+        Ok(CurrentColumns {
+            columns,
+            pseudo_inverse,
+        })
     }
+}
+
+/// The current parameters' Jacobian $J_\theta$ and its pseudo-inverse
+/// (singular values below $10^{-10}$ of the largest dropped), which every
+/// candidate's projection shares.
+struct CurrentColumns {
+    columns: DMatrix<f64>,
+    pseudo_inverse: DMatrix<f64>,
 }
 
 /// The point a forward difference steps from: its parameters, needle
@@ -266,10 +288,10 @@ fn tested_columns(
 }
 
 /// Score statistic of the effect whose columns are `columns`, with
-/// `jacobian` the current parameters' columns.
+/// `current` the current parameters' columns.
 fn score_test(
     point: &CurrentPoint,
-    jacobian: &DMatrix<f64>,
+    current: &CurrentColumns,
     fitted: &Fitted,
     augmented: &Model,
     columns: TestedColumns,
@@ -282,19 +304,9 @@ fn score_test(
     } = columns;
     let base = &point.residuals;
     let m = base.len();
-    let jt = jacobian;
     let jp = DMatrix::from_fn(m, tested.len(), |i, j| derivatives[j][i]);
-    let coefficients = if jt.ncols() > 0 {
-        let svd = jt.clone().svd(true, true);
-        svd.solve(&jp, 1e-10 * svd.singular_values.max())
-            .map_err(|e| DiagnoseError::InvalidOption {
-                field: "score test",
-                reason: e.to_string(),
-            })?
-    } else {
-        DMatrix::zeros(0, tested.len())
-    };
-    let projected = &jp - jt * &coefficients;
+    let coefficients = &current.pseudo_inverse * &jp;
+    let projected = &jp - &current.columns * &coefficients;
     let r = nalgebra::DVector::from_column_slice(base);
     let score = projected.transpose() * &r;
     let information = projected.transpose() * &projected;
