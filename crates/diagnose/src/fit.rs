@@ -110,6 +110,8 @@ pub(crate) struct FitProblem<'a> {
     /// differenced: its parameters and solutions, which the columns of
     /// parameters acting after the solves take (`Start::Reuse`).
     near_base: Mutex<Option<(Vec<f64>, Arc<Placements>)>>,
+    /// The trial of every residual.
+    row_trials: Vec<usize>,
 }
 
 impl<'a> FitProblem<'a> {
@@ -120,6 +122,7 @@ impl<'a> FitProblem<'a> {
             near_rounds,
             evaluations: Mutex::new(Vec::new()),
             near_base: Mutex::new(None),
+            row_trials: context.obs.row_trials(),
         }
     }
 
@@ -217,6 +220,29 @@ impl Problem for FitProblem<'_> {
         };
         Some(evaluate().map_err(Into::into))
     }
+
+    /// The column of a parameter that acts only as the baseline's shaft
+    /// density or Young's modulus would ([`Model::chain`]), trial by trial
+    /// a multiple of that parameter's: one column fewer to solve for. The
+    /// whitening's blocks lie within single frames, so a factor per trial
+    /// commutes with it.
+    fn chained_column(&self, params: &[f64], j: usize) -> Option<(usize, Vec<f64>)> {
+        chained_rows(self.model, params, j, &self.context.obs, &self.row_trials)
+    }
+}
+
+/// Where parameter `k` acts only as a baseline parameter would
+/// ([`Model::chain`]): that parameter and, per residual (`row_trials` its
+/// trial), the factor from its whitened column to `k`'s.
+pub(crate) fn chained_rows(
+    model: &Model,
+    params: &[f64],
+    k: usize,
+    obs: &Observations,
+    row_trials: &[usize],
+) -> Option<(usize, Vec<f64>)> {
+    let (source, per_trial) = model.chain(params, k, &obs.trials)?;
+    Some((source, row_trials.iter().map(|&t| per_trial[t]).collect()))
 }
 
 /// How precisely a fit is carried out. Both difference the model with

@@ -1505,6 +1505,84 @@ pub(crate) mod tests {
         }
     }
 
+    /// Every catalog effect's [`crate::effect::Effect::chain`] claims,
+    /// checked on the whole forward model (with the slab at weight 0.7)
+    /// against columns differenced as a fit differences them.
+    #[test]
+    fn columns_of_chained_parameters_are_multiples_of_the_baseline_s() {
+        let mut obs = observations_of(&[
+            ("probe", TrialKind::Probe, 2.0, 0.0),
+            ("needle-slow", TrialKind::Needle, 1.0, 0.04),
+            ("needle-fast", TrialKind::Needle, 5.0, 0.03),
+        ]);
+        obs.trials[1].velocity = 0.001;
+        obs.trials[2].velocity = 0.009;
+        let (obs, forward, start) = paper_forward_of(obs);
+        let rows = obs.row_trials();
+        let mut chained = Vec::new();
+        for effect in catalog().iter().filter(|e| e.id() != "out_of_plane") {
+            let model = with_effects(&forward, start, &[effect.id(), "out_of_plane"]);
+            let mut p = vec![25.0e3, 0.45, 8.0, 0.002];
+            let own = &model.parameters[p.len()..model.len() - 1];
+            p.extend(own.iter().map(|q| {
+                let v = q.initial + 0.3 * q.scale;
+                v.clamp(q.lower.unwrap_or(v), q.upper.unwrap_or(v))
+            }));
+            p.push(0.7);
+            let (_, placements) = forward.predict_from(&model, &p, &obs, Start::Cold).unwrap();
+            let near = |p: &[f64]| {
+                let start = Start::Near {
+                    placements: &placements,
+                    rounds: crate::place::NEAR_ROUNDS,
+                };
+                forward
+                    .predict_from(&model, p, &obs, start)
+                    .unwrap()
+                    .0
+                    .values
+            };
+            let base = near(&p);
+            assert_eq!(rows.len(), base.len());
+            let column = |k: usize| -> Vec<f64> {
+                let h = 1e-5 * model.parameters[k].scale.max(p[k].abs());
+                let mut moved = p.clone();
+                moved[k] += h;
+                near(&moved)
+                    .iter()
+                    .zip(&base)
+                    .map(|(a, b)| (a - b) / h)
+                    .collect()
+            };
+            for k in 0..model.len() {
+                let Some((source, per_trial)) = model.chain(&p, k, &obs.trials) else {
+                    continue;
+                };
+                chained.push((effect.id(), source));
+                let (differenced, of_source) = (column(k), column(source));
+                let size = differenced.iter().map(|d| d.abs()).fold(0.0, f64::max);
+                assert!(size > 0.0, "{}", effect.id());
+                let error = differenced
+                    .iter()
+                    .zip(&of_source)
+                    .zip(&rows)
+                    .map(|((d, s), &t)| (d - per_trial[t] * s).abs())
+                    .fold(0.0, f64::max);
+                assert!(
+                    error < 1e-4 * size,
+                    "{}: {error:e} of {size:e}",
+                    effect.id()
+                );
+            }
+        }
+        assert_eq!(
+            chained,
+            [
+                ("velocity_dependent_friction", 2),
+                ("material_stiffening", 0)
+            ]
+        );
+    }
+
     #[test]
     fn columns_of_parameters_acting_after_the_solves_take_the_base_s_solutions_to_the_bit() {
         let (obs, forward, start) = paper_forward();

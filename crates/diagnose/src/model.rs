@@ -3,12 +3,16 @@
 
 use needle_lsq::Parameter;
 
-use crate::effect::{Effect, EffectParameter, Geometry};
+use crate::effect::{Chain, Effect, EffectParameter, Geometry, TrialContext};
 use crate::error::DiagnoseError;
 use crate::spec::ModelSpec;
 
 /// Number of baseline parameters: E, nu, shaft density, probe width.
 pub(crate) const BASELINE_PARAMETERS: usize = 4;
+/// Index of Young's modulus in a parameter vector.
+pub(crate) const YOUNGS_MODULUS: usize = 0;
+/// Index of the uniform shaft density in a parameter vector.
+pub(crate) const SHAFT_DENSITY: usize = 2;
 /// Index of the probe contact width in a parameter vector.
 pub(crate) const PROBE_WIDTH: usize = 3;
 
@@ -130,6 +134,34 @@ impl Model {
                         (span[0]..span[1]).contains(&k) && effect.acts_after_solves()
                     })
         })
+    }
+
+    /// Where parameter `k`'s effect says it acts only as a baseline
+    /// parameter would ([`Effect::chain`]) on every one of `trials`, all in
+    /// the same way: that parameter's index and, per trial, the factor
+    /// $f_t$ with $\partial r_t / \partial p_k = f_t\,\partial r_t /
+    /// \partial p_\text{source}$.
+    pub fn chain(&self, p: &[f64], k: usize, trials: &[TrialContext]) -> Option<(usize, Vec<f64>)> {
+        let e = self
+            .offsets
+            .windows(2)
+            .position(|w| (w[0]..w[1]).contains(&k))?;
+        let (effect, own) = (&self.effects[e], &p[self.offsets[e]..self.offsets[e + 1]]);
+        let index = k - self.offsets[e];
+        let chains: Vec<Chain> = trials
+            .iter()
+            .map(|t| effect.chain(own, index, t))
+            .collect::<Option<_>>()?;
+        let modulus = self.baseline(p).youngs_modulus;
+        let factors = chains.iter().map(|c| match *c {
+            Chain::ShaftDensity(rate) => (SHAFT_DENSITY, rate),
+            Chain::Stiffness(rate) => (YOUNGS_MODULUS, rate * modulus),
+        });
+        let source = factors.clone().next().map_or(SHAFT_DENSITY, |(s, _)| s);
+        factors
+            .map(|(s, f)| (s == source).then_some(f))
+            .collect::<Option<Vec<f64>>>()
+            .map(|f| (source, f))
     }
 
     /// The effects with their own parameter slices.

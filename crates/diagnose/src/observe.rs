@@ -237,6 +237,19 @@ impl Observations {
         out
     }
 
+    /// The trial of every residual, in residual order.
+    pub fn row_trials(&self) -> Vec<usize> {
+        let markers = self
+            .frames
+            .iter()
+            .flat_map(|f| std::iter::repeat_n(f.trial, 2 * f.markers.len()));
+        let forces = self
+            .forces
+            .iter()
+            .flat_map(|s| std::iter::repeat_n(s.trial, 2));
+        markers.chain(forces).collect()
+    }
+
     /// Number of force residuals (two per needle sample).
     pub fn force_count(&self) -> usize {
         2 * self.forces.len()

@@ -18,7 +18,11 @@
 //! (the support compliance, whose null is the rigid limit, needs a finite
 //! step); $J_\theta$ steps $10^{-6}$ of the scale. Both re-place the needle
 //! loads from the current fit's placements in one round
-//! (`place::RANKING_NEAR_ROUNDS`), as the refits' columns do.
+//! (`place::RANKING_NEAR_ROUNDS`), as the refits' columns do. A column of
+//! either that is, trial by trial, a multiple of a current baseline
+//! parameter's ([`crate::effect::Effect::chain`]: the speed's friction
+//! slope of the shaft density's, the stiffening rate of $E$'s) is taken
+//! from that column instead.
 //!
 //! The Jacobian in the current parameters is the same for every candidate
 //! (each effect is silent at its null), so it is computed once per step,
@@ -65,7 +69,7 @@ use serde::{Deserialize, Serialize};
 use crate::chi2::chi2_upper_tail;
 use crate::effect::EffectParameter;
 use crate::error::DiagnoseError;
-use crate::fit::{Context, Fit, Fitted, Precision, fit_model};
+use crate::fit::{Context, Fit, Fitted, Precision, chained_rows, fit_model};
 use crate::forward::Placements;
 use crate::model::{Model, PROBE_WIDTH};
 use crate::place::RANKING_NEAR_ROUNDS;
@@ -127,6 +131,8 @@ struct CurrentPoint {
     free: Vec<usize>,
     placements: Arc<Placements>,
     near: Vec<f64>,
+    /// The trial of every residual.
+    row_trials: Vec<usize>,
 }
 
 impl CurrentPoint {
@@ -150,7 +156,24 @@ impl CurrentPoint {
             free,
             placements,
             near,
+            row_trials: context.obs.row_trials(),
         })
+    }
+
+    /// Where parameter `k` of `model` at `at` acts only as a free
+    /// parameter of the current model would ([`chained_rows`]): that
+    /// parameter's position among the free ones, and the factors per
+    /// residual.
+    fn chain(
+        &self,
+        context: &Context,
+        model: &Model,
+        at: &[f64],
+        k: usize,
+    ) -> Option<(usize, Vec<f64>)> {
+        let (source, factors) = chained_rows(model, at, k, &context.obs, &self.row_trials)?;
+        let position = self.free.iter().position(|&f| f == source)?;
+        Some((position, factors))
     }
 
     /// The Jacobian of the residuals in the free parameters, with its
@@ -166,14 +189,34 @@ impl CurrentPoint {
             placements: &self.placements,
             residuals: &self.near,
         };
-        let derivatives = self
+        // A column that is a multiple of a baseline parameter's is taken
+        // from it (the baseline's own never are).
+        let chains: Vec<_> = self
+            .free
+            .iter()
+            .map(|&k| self.chain(context, current, at, k))
+            .collect();
+        let differenced = self
             .free
             .par_iter()
-            .map(|&k| forward_difference(context, current, &base, k, 1e-6))
+            .zip(&chains)
+            .map(|(&k, chain)| match chain {
+                Some(_) => Ok(None),
+                None => forward_difference(context, current, &base, k, 1e-6).map(Some),
+            })
             .collect::<Result<Vec<_>, _>>()?;
-        let columns = DMatrix::from_fn(self.residuals.len(), self.free.len(), |i, j| {
-            derivatives[j][i]
-        });
+        let mut columns = DMatrix::zeros(self.residuals.len(), self.free.len());
+        for (j, column) in differenced.iter().enumerate() {
+            if let Some(column) = column {
+                columns.column_mut(j).copy_from_slice(column);
+            }
+        }
+        for (j, chain) in chains.iter().enumerate() {
+            if let Some((source, factors)) = chain {
+                let column = chained(&columns, *source, factors);
+                columns.column_mut(j).copy_from_slice(&column);
+            }
+        }
         let pseudo_inverse = if columns.ncols() > 0 {
             let svd = columns.clone().svd(true, true);
             let tolerance = 1e-10 * svd.singular_values.max();
@@ -190,6 +233,16 @@ impl CurrentPoint {
             pseudo_inverse,
         })
     }
+}
+
+/// Column `source` of `columns` times `factors`, row by row.
+fn chained(columns: &DMatrix<f64>, source: usize, factors: &[f64]) -> Vec<f64> {
+    columns
+        .column(source)
+        .iter()
+        .zip(factors)
+        .map(|(d, f)| f * d)
+        .collect()
 }
 
 /// The current parameters' Jacobian $J_\theta$ and its pseudo-inverse
@@ -249,7 +302,23 @@ struct TestedColumns {
     /// their null (tested) or initial value (untested).
     at: Vec<f64>,
     tested: Vec<usize>,
+    /// Per tested parameter, its column; empty where it is a multiple of a
+    /// current column, which `chains` gives.
     derivatives: Vec<Vec<f64>>,
+    /// Per tested parameter, the current free parameter whose column it is
+    /// a multiple of, and the factors ([`CurrentPoint::chain`]).
+    chains: Vec<Option<(usize, Vec<f64>)>>,
+}
+
+impl TestedColumns {
+    /// Fills the columns that are multiples of the current ones.
+    fn complete(&mut self, current: &CurrentColumns) {
+        for (derivative, chain) in self.derivatives.iter_mut().zip(&self.chains) {
+            if let Some((source, factors)) = chain {
+                *derivative = chained(&current.columns, *source, factors);
+            }
+        }
+    }
 }
 
 /// The columns of the effect that extends the current model to `augmented`.
@@ -276,14 +345,23 @@ fn tested_columns(
         placements: &point.placements,
         residuals: &point.near,
     };
+    let chains: Vec<_> = tested
+        .iter()
+        .map(|&k| point.chain(context, augmented, &at, k))
+        .collect();
     let derivatives = tested
         .par_iter()
-        .map(|&k| forward_difference(context, augmented, &near, k, 1e-3))
+        .zip(&chains)
+        .map(|(&k, chain)| match chain {
+            Some(_) => Ok(Vec::new()),
+            None => forward_difference(context, augmented, &near, k, 1e-3),
+        })
         .collect::<Result<Vec<_>, _>>()?;
     Ok(TestedColumns {
         at,
         tested,
         derivatives,
+        chains,
     })
 }
 
@@ -297,10 +375,13 @@ fn score_test(
     columns: TestedColumns,
 ) -> Result<Score, DiagnoseError> {
     let n_current = fitted.params.len();
+    let mut columns = columns;
+    columns.complete(current);
     let TestedColumns {
         at,
         tested,
         derivatives,
+        ..
     } = columns;
     let base = &point.residuals;
     let m = base.len();

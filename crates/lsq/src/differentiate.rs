@@ -7,7 +7,8 @@
 //! A step that would cross a bound, or whose evaluation fails, is taken on
 //! the other side instead. Where the problem has a map of its own near the
 //! base point ([`Problem::residuals_near`]), every column and the base
-//! value come from that map.
+//! value come from that map. A column the problem gives as a multiple of
+//! another ([`Problem::chained_column`]) is taken from that one.
 
 use nalgebra::DMatrix;
 use rayon::prelude::*;
@@ -97,13 +98,59 @@ pub(crate) fn difference_columns<P: Problem + ?Sized>(
         }
         None => (base, 0),
     };
+    let chains = chained(problem, at, columns, m);
     let evaluations: Vec<usize> = jacobian
         .as_mut_slice()
         .par_chunks_mut(m)
         .zip(columns.par_iter())
-        .map(|(column, spec)| difference_column(problem, at, base, spec, differences, column))
+        .zip(&chains)
+        .map(|((column, spec), chain)| match chain {
+            Some(_) => Ok(0),
+            None => difference_column(problem, at, base, spec, differences, column),
+        })
         .collect::<Result<_, _>>()?;
+    for (k, chain) in chains.iter().enumerate() {
+        if let Some((source, factors)) = chain {
+            let column: Vec<f64> = jacobian
+                .column(*source)
+                .iter()
+                .zip(factors)
+                .map(|(d, f)| f * d)
+                .collect();
+            jacobian.column_mut(k).copy_from_slice(&column);
+        }
+    }
     Ok((jacobian, spent + evaluations.iter().sum::<usize>()))
+}
+
+/// Per column, the position among `columns` of the column it is a
+/// multiple of and the factors, where the problem gives one that is
+/// differenced here: its source is among `columns` and not a multiple
+/// itself.
+fn chained<P: Problem + ?Sized>(
+    problem: &P,
+    at: &[f64],
+    columns: &[ColumnSpec],
+    m: usize,
+) -> Vec<Option<(usize, Vec<f64>)>> {
+    let declared: Vec<Option<(usize, Vec<f64>)>> = columns
+        .iter()
+        .map(|spec| {
+            let (source, factors) = problem.chained_column(at, spec.index)?;
+            let position = columns.iter().position(|c| c.index == source)?;
+            (factors.len() == m && factors.iter().all(|f| f.is_finite()))
+                .then_some((position, factors))
+        })
+        .collect();
+    declared
+        .iter()
+        .map(|chain| {
+            chain
+                .as_ref()
+                .filter(|(position, _)| declared[*position].is_none())
+                .cloned()
+        })
+        .collect()
 }
 
 /// Fills one column; returns the number of evaluations spent.

@@ -58,4 +58,20 @@ pub trait Problem: Sync {
         let _ = (base, params, out);
         None
     }
+
+    /// Column `j` of the Jacobian at `params` as a row-by-row multiple of
+    /// another column, where the problem knows one by the chain rule:
+    /// `Some((i, factors))` means $\partial r / \partial p_j = f \odot
+    /// \partial r / \partial p_i$, `factors` $f$ one per residual. `None`
+    /// (the default) means "difference it".
+    ///
+    /// For example a parameter that acts on each group of residuals only
+    /// through a quantity $q_g = p_i + p_j v_g$ has $f = v_g$ on the rows
+    /// of group $g$. The engine then differences column `i` only (when it
+    /// differences it at all, and it is not itself a multiple of another)
+    /// and takes column `j` from it for no evaluation.
+    fn chained_column(&self, params: &[f64], j: usize) -> Option<(usize, Vec<f64>)> {
+        let _ = (params, j);
+        None
+    }
 }

@@ -673,3 +673,160 @@ fn options_written_before_the_uncertainty_switch_still_read_with_it_on() {
     let read: needle_lsq::Options = ron::from_str(&text).unwrap();
     assert_eq!(read, needle_lsq::Options::default());
 }
+
+/// $r_i = e^{-(a + b v_i) t_i} + c t_i^2 - y_i$: `b` acts only through
+/// $a + b v_i$, so its column is $v \odot$ the column of `a`, which the
+/// problem declares when `chain` says so (`a` from `b` as well when
+/// `circular`).
+struct Grouped {
+    t: Vec<f64>,
+    v: Vec<f64>,
+    y: Vec<f64>,
+    chain: bool,
+    circular: bool,
+}
+
+impl Grouped {
+    fn new(chain: bool, circular: bool) -> Self {
+        let t: Vec<f64> = (0..30).map(|i| 0.1 * f64::from(i % 10)).collect();
+        let v: Vec<f64> = (0..30).map(|i| [0.5, 1.0, 2.0][i / 10]).collect();
+        let y = t
+            .iter()
+            .zip(&v)
+            .map(|(t, v)| (-(0.7 + 0.4 * v) * t).exp() + 0.2 * t * t)
+            .collect();
+        Self {
+            t,
+            v,
+            y,
+            chain,
+            circular,
+        }
+    }
+
+    fn analytic(&self, p: &[f64]) -> DMatrix<f64> {
+        DMatrix::from_fn(self.t.len(), 3, |i, j| {
+            let (t, v) = (self.t[i], self.v[i]);
+            let decay = -t * (-(p[0] + p[1] * v) * t).exp();
+            [decay, decay * v, t * t][j]
+        })
+    }
+}
+
+impl Problem for Grouped {
+    fn num_parameters(&self) -> usize {
+        3
+    }
+    fn num_residuals(&self) -> usize {
+        self.t.len()
+    }
+    fn residuals(&self, p: &[f64], out: &mut [f64]) -> Result<(), EvaluationError> {
+        for (i, o) in out.iter_mut().enumerate() {
+            let (t, v) = (self.t[i], self.v[i]);
+            *o = (-(p[0] + p[1] * v) * t).exp() + p[2] * t * t - self.y[i];
+        }
+        Ok(())
+    }
+    fn chained_column(&self, _params: &[f64], j: usize) -> Option<(usize, Vec<f64>)> {
+        match j {
+            1 if self.chain => Some((0, self.v.clone())),
+            0 if self.circular => Some((1, self.v.iter().map(|v| 1.0 / v).collect())),
+            _ => None,
+        }
+    }
+}
+
+fn grouped_parameters() -> [Parameter; 3] {
+    [
+        Parameter::new("a", 1.0),
+        Parameter::new("b", 0.0),
+        Parameter::new("c", 0.0),
+    ]
+}
+
+#[test]
+fn a_chained_column_is_the_multiple_of_its_differenced_source() {
+    let at = [0.9, 0.3, 0.1];
+    let chained = Grouped::new(true, false);
+    let plain = Grouped::new(false, false);
+    let parameters = grouped_parameters();
+    let with =
+        finite_difference_jacobian(&chained, &parameters, &at, Differences::Forward).unwrap();
+    let without =
+        finite_difference_jacobian(&plain, &parameters, &at, Differences::Forward).unwrap();
+    let exact = chained.analytic(&at);
+    for i in 0..chained.t.len() {
+        // Taken from column 0, not differenced: the product to the bit.
+        assert_eq!(with[(i, 1)], chained.v[i] * with[(i, 0)]);
+        assert_eq!(with[(i, 0)], without[(i, 0)]);
+        assert_eq!(with[(i, 2)], without[(i, 2)]);
+        for j in 0..3 {
+            assert!((with[(i, j)] - exact[(i, j)]).abs() < 1e-6, "({i}, {j})");
+        }
+    }
+}
+
+#[test]
+fn a_fit_with_a_chained_column_reaches_the_same_minimum_for_fewer_evaluations() {
+    let engine = LevenbergMarquardt::default();
+    let parameters = grouped_parameters();
+    let plain = engine
+        .minimize(&Grouped::new(false, false), &parameters)
+        .unwrap();
+    let chained = engine
+        .minimize(&Grouped::new(true, false), &parameters)
+        .unwrap();
+    assert!(
+        chained.termination.is_converged(),
+        "{:?}",
+        chained.termination
+    );
+    for (p, q) in chained.params.iter().zip(plain.params.iter()) {
+        assert!((p - q).abs() < 1e-7, "{p} against {q}");
+    }
+    for (p, truth) in chained.params.iter().zip([0.7, 0.4, 0.2]) {
+        assert!((p - truth).abs() < 1e-7, "{p} against {truth}");
+    }
+    // Two differenced columns per Jacobian instead of three.
+    assert_eq!(
+        chained.evaluations.finite_difference_residuals,
+        2 * chained.evaluations.jacobians
+    );
+    assert_eq!(
+        plain.evaluations.finite_difference_residuals,
+        3 * plain.evaluations.jacobians
+    );
+}
+
+#[test]
+fn a_chain_whose_source_is_fixed_or_chained_itself_is_differenced() {
+    let engine = LevenbergMarquardt::default();
+    let mut parameters = grouped_parameters();
+    parameters[0] = Parameter::new("a", 0.7).fix();
+    let report = engine
+        .minimize(&Grouped::new(true, false), &parameters)
+        .unwrap();
+    assert!(
+        (report.params[1] - 0.4).abs() < 1e-7,
+        "{}",
+        report.params[1]
+    );
+    assert_eq!(
+        report.evaluations.finite_difference_residuals,
+        2 * report.evaluations.jacobians
+    );
+    // Each column declared a multiple of the other: both are differenced.
+    let at = [0.9, 0.3, 0.1];
+    let circular = Grouped::new(true, true);
+    let parameters = grouped_parameters();
+    let jacobian =
+        finite_difference_jacobian(&circular, &parameters, &at, Differences::Forward).unwrap();
+    let plain = finite_difference_jacobian(
+        &Grouped::new(false, false),
+        &parameters,
+        &at,
+        Differences::Forward,
+    )
+    .unwrap();
+    assert_eq!(jacobian, plain);
+}

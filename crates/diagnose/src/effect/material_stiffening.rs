@@ -1,6 +1,6 @@
 //! `material_stiffening`: the phantom stiffens over the days after casting.
 
-use super::{Effect, EffectParameter, Geometry, TrialContext};
+use super::{Chain, Effect, EffectParameter, Geometry, TrialContext};
 
 /// Plasticizer leaks out and the phantom stiffens:
 /// $E(\text{day}) = E_0 (1 + r\,\text{day})$.
@@ -41,5 +41,12 @@ impl Effect for MaterialStiffening {
         _y_extent: [f64; 2],
     ) -> f64 {
         1.0 + parameters[0] * trial.day
+    }
+
+    /// $c = 1 + r d$: $\partial \ln c / \partial r = d / (1 + r d)$.
+    fn chain(&self, parameters: &[f64], _index: usize, trial: &TrialContext) -> Option<Chain> {
+        Some(Chain::Stiffness(
+            trial.day / (1.0 + parameters[0] * trial.day),
+        ))
     }
 }

@@ -7,7 +7,10 @@
 //! [`Effect::shaft_density_factor`] multiplying), the
 //! kinematics, plane or slab ([`Effect::slab_weight`]), the constitutive
 //! law, linear or neo-Hookean ([`Effect::nonlinear_weight`]), or the
-//! measurement map ([`Effect::measured_position`]). Every effect has *null*
+//! measurement map ([`Effect::measured_position`]). An effect may also
+//! say that a parameter acts only as the baseline's shaft density or
+//! Young's modulus would ([`Effect::chain`]), which spares the fits a
+//! solve per Jacobian. Every effect has *null*
 //! parameter values at which it changes nothing: the score test of
 //! [`crate::rank`] evaluates the gradient there.
 //!
@@ -120,6 +123,23 @@ pub struct ShaftPoint {
     pub length: f64,
 }
 
+/// How a parameter acts on a trial when it acts only as one of the
+/// baseline's would ([`Effect::chain`]). The derivative of every
+/// prediction of the trial in the parameter $\theta$ is then a multiple of
+/// the derivative in that baseline parameter (chain rule).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Chain {
+    /// Adds $\rho\,\theta$ to the trial's shaft density uniformly along
+    /// the shaft, before the effects' factors, as the baseline's $q_0$ is
+    /// added: $\partial/\partial\theta = \rho\,\partial/\partial q_0$.
+    ShaftDensity(f64),
+    /// Multiplies the modulus of every element in the trial by a factor
+    /// $c(\theta)$ with $\partial \ln c / \partial\theta = \rho$, as a
+    /// change of the baseline's $E$ would:
+    /// $\partial/\partial\theta = \rho\,E\,\partial/\partial E$.
+    Stiffness(f64),
+}
+
 /// A physical effect the model may include. Parameters arrive as the slice
 /// of this effect's own values, in the order of [`Effect::parameters`].
 pub trait Effect: Send + Sync {
@@ -207,6 +227,16 @@ pub trait Effect: Send + Sync {
     /// claims.
     fn acts_after_solves(&self) -> bool {
         false
+    }
+
+    /// How parameter `index` acts on `trial`, if it acts only as the
+    /// [`Chain`] says and through no other hook: the fits then take its
+    /// Jacobian column from the baseline parameter's instead of solving
+    /// the model again. `None`, the default, is always right, only slower;
+    /// a unit test checks the catalog's claims.
+    fn chain(&self, parameters: &[f64], index: usize, trial: &TrialContext) -> Option<Chain> {
+        let _ = (parameters, index, trial);
+        None
     }
 
     /// Maps a true marker position on the top face to what the measurement

@@ -1,6 +1,6 @@
 //! `velocity_dependent_friction`: shaft force density growing with speed.
 
-use super::{Effect, EffectParameter, Geometry, ShaftPoint, TrialContext};
+use super::{Chain, Effect, EffectParameter, Geometry, ShaftPoint, TrialContext};
 
 /// Friction that grows with insertion speed (the paper's Fig. 14):
 /// $q(v) = q_0 + q_1 v$, the baseline density being $q_0$.
@@ -35,5 +35,9 @@ impl Effect for VelocityDependentFriction {
 
     fn shaft_density(&self, parameters: &[f64], trial: &TrialContext, _point: ShaftPoint) -> f64 {
         parameters[0] * trial.velocity
+    }
+
+    fn chain(&self, _parameters: &[f64], _index: usize, trial: &TrialContext) -> Option<Chain> {
+        Some(Chain::ShaftDensity(trial.velocity))
     }
 }
