@@ -31,14 +31,24 @@ pub fn ladder_rows(run: &DiagnosisRun) -> Vec<Vec<String>> {
                 row.step.to_string(),
                 row.added.clone().unwrap_or_else(|| "(model given)".into()),
                 row.parameters.to_string(),
-                format!("{:.2}", row.fit.rms_marker * 1e6),
-                format!("{:.2}", row.fit.rms_force * 1e3),
-                format!("{:.2}", row.fit.chi2_marker),
-                format!("{:.2}", row.fit.chi2_force),
+                fixed(row.fit.rms_marker * 1e6, 2),
+                fixed(row.fit.rms_force * 1e3, 2),
+                fixed(row.fit.chi2_marker, 2),
+                fixed(row.fit.chi2_force, 2),
                 format!("{:?}", row.verdict),
             ]
         })
         .collect()
+}
+
+/// `value` to `digits` decimals, or "-" for a channel without data (a
+/// campaign without needle trials has no base force residuals).
+fn fixed(value: f64, digits: usize) -> String {
+    if value.is_finite() {
+        format!("{value:.digits$}")
+    } else {
+        "-".into()
+    }
 }
 
 /// Prints the ladder as a Markdown table.
@@ -86,7 +96,7 @@ pub fn add_sections(report: &mut Report, run: &DiagnosisRun, number: &str) -> Re
         .flat_map(|(step, diagnosis)| {
             diagnosis.candidates.iter().map(move |c| {
                 let or_dash = |value: Option<String>| value.unwrap_or_else(|| "-".into());
-                let with = |chi2: f64| or_dash(c.refitted.then(|| format!("{chi2:.2}")));
+                let with = |chi2: f64| or_dash(c.refitted.then(|| fixed(chi2, 2)));
                 vec![
                     step.to_string(),
                     c.effect.clone(),
@@ -138,13 +148,12 @@ pub fn add_sections(report: &mut Report, run: &DiagnosisRun, number: &str) -> Re
         .trials
         .iter()
         .map(|t| {
-            let or_dash = |v: f64, text: String| if v.is_finite() { text } else { "-".into() };
             vec![
                 t.trial.clone(),
-                or_dash(t.rms_marker, format!("{:.2}", t.rms_marker * 1e6)),
-                or_dash(t.chi2_marker, format!("{:.3}", t.chi2_marker)),
-                or_dash(t.rms_force, format!("{:.2}", t.rms_force * 1e3)),
-                or_dash(t.chi2_force, format!("{:.3}", t.chi2_force)),
+                fixed(t.rms_marker * 1e6, 2),
+                fixed(t.chi2_marker, 3),
+                fixed(t.rms_force * 1e3, 2),
+                fixed(t.chi2_force, 3),
                 t.near_field_left_out.to_string(),
             ]
         })
@@ -492,4 +501,17 @@ where
         )
         .map_err(fail)?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::fixed;
+
+    #[test]
+    fn a_channel_without_data_is_a_dash_not_nan() {
+        assert_eq!(fixed(f64::NAN, 2), "-");
+        assert_eq!(fixed(f64::INFINITY, 2), "-");
+        assert_eq!(fixed(1.2345, 2), "1.23");
+        assert_eq!(fixed(0.99713, 3), "0.997");
+    }
 }

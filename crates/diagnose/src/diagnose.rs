@@ -8,8 +8,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::DiagnoseError;
 use crate::fit::{Context, Fit, Fitted, Precision, fit_model};
-use crate::forward::Forward;
-use crate::model::{Baseline, Model};
+use crate::forward::{Forward, Start};
+use crate::model::{Baseline, Model, POISSON_RATIO};
 use crate::noise::{
     ChannelNoise, NoiseBasis, NoiseSource, RepeatedSampleNoise, marker_sigma_from_fit,
     noise_from_repeated_samples,
@@ -17,7 +17,7 @@ use crate::noise::{
 use crate::observe::{Load, Observations};
 use crate::rank::{Candidate, Ranked, rank_candidates};
 use crate::spec::{DiagnoseOptions, ModelSpec};
-use crate::whiten::Whitening;
+use crate::whiten::{ProbeResponse, Whitening};
 
 /// What the residuals say.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -302,7 +302,11 @@ pub fn diagnose_campaign(
             candidates: ranked.iter().map(|r| r.candidate.clone()).collect(),
             noise: noise.clone(),
             threshold_p,
-            warnings: physical_range_warnings(&current, &fitted.params),
+            warnings: physical_range_warnings(
+                &current,
+                &fitted.params,
+                fitted.report.uncertainty.standard_errors[POISSON_RATIO],
+            ),
         };
         ladder.rows.push(LadderRow {
             step: steps.len(),
@@ -337,6 +341,14 @@ pub fn diagnose_campaign(
             &context.forward.geometry,
             current.baseline(&refit.params),
         )?;
+        // The probe frames' weights carry the probe force noise to the
+        // markers through the model's own responses, which the effect may
+        // change a great deal (a foundation under a probed slab): they are
+        // taken from the model with it, at its refit, before it is fitted.
+        // Noise taken from a fit is weighed again below, after the fit.
+        if noise.per_sample() {
+            reweigh(&mut context, &current, &refit, &noise, initial)?;
+        }
         // Candidates are refitted with the probe width held; the chosen
         // model is refitted with it free, since the width the previous
         // model fitted may have absorbed part of what the effect explains.
@@ -370,14 +382,26 @@ const LEAST_PLAUSIBLE_POISSON_RATIO: f64 = 0.45;
 /// plane-strain model of a thin free slab (plane stress in the limit)
 /// fits it exactly with $\nu' = \nu/(1+\nu)$ and
 /// $E' = E(1+2\nu)/(1+\nu)^2$: for $\nu = 0.48$, $\nu' = 0.32$; the data
-/// then cannot single out `out_of_plane`, but the constants can.
-fn physical_range_warnings(model: &Model, params: &[f64]) -> Vec<String> {
+/// then cannot single out `out_of_plane`, but the constants can. Poisson's
+/// ratio is flagged only when it is below the plausible range by more than
+/// twice its standard error (`standard_error`, where the fit estimated
+/// one): a phantom of $\nu = 0.45$ itself fits a little either side of it.
+fn physical_range_warnings(
+    model: &Model,
+    params: &[f64],
+    standard_error: Option<f64>,
+) -> Vec<String> {
     let nu = model.baseline(params).poisson_ratio;
+    let margin = 2.0 * standard_error.unwrap_or(0.0);
     let mut warnings = Vec::new();
-    if nu < LEAST_PLAUSIBLE_POISSON_RATIO {
+    if nu + margin < LEAST_PLAUSIBLE_POISSON_RATIO {
         let plane_stress_nu = (nu / (1.0 - nu)).min(0.5);
+        let fitted = match standard_error {
+            Some(se) => format!("{nu:.4} +- {se:.4}"),
+            None => format!("{nu:.4}"),
+        };
         let mut text = format!(
-            "poisson_ratio fitted at {nu:.3}, below the {LEAST_PLAUSIBLE_POISSON_RATIO} of \
+            "poisson_ratio fitted at {fitted}, below the {LEAST_PLAUSIBLE_POISSON_RATIO} of \
              nearly incompressible phantom materials (PVC, gelatin, silicone)"
         );
         if !model.spec.effects.iter().any(|e| e == "out_of_plane") {
@@ -441,18 +465,59 @@ fn weigh(
             NoiseSource::Estimated { marker, force }
         }
     };
-    let [marker_sigma, force_sigma] = match &noise {
+    context.whitening = whitening(&context.obs, &noise, initial, &responses);
+    Ok(noise)
+}
+
+/// The whitening of `noise` (`initial` where stated), with the probe
+/// frames' force noise carried to the markers by `responses`.
+fn whitening(
+    obs: &Observations,
+    noise: &NoiseSource,
+    initial: [f64; 2],
+    responses: &[ProbeResponse],
+) -> Whitening {
+    let [marker_sigma, force_sigma] = match noise {
         NoiseSource::Stated => initial,
         NoiseSource::Estimated { marker, force } => [marker.sigma, force.sigma],
     };
-    context.whitening = Whitening::with_probe_noise(
-        marker_count,
+    Whitening::with_probe_noise(
+        obs.marker_count(),
         marker_sigma,
-        &row_sigmas,
+        &obs.row_sigmas(),
         force_sigma,
-        &responses,
-    );
-    Ok(noise)
+        responses,
+    )
+}
+
+/// The whitening of the same `noise`, with the probe frames' force noise
+/// carried to the markers by `current` at its fit `fitted`. The probe
+/// responses do not depend on where the needle loads act, so the needle
+/// frames keep the fit's placements (no placement rounds).
+fn reweigh(
+    context: &mut Context,
+    current: &Model,
+    fitted: &Fitted,
+    noise: &NoiseSource,
+    initial: [f64; 2],
+) -> Result<(), DiagnoseError> {
+    let start = Start::Near {
+        placements: &fitted.placements,
+        rounds: 0,
+    };
+    let (prediction, _) =
+        context
+            .forward
+            .predict_from(current, &fitted.params, &context.obs, start)?;
+    let mut responses = prediction.probe_responses;
+    // The probe frames' force noise was set from `initial`.
+    if let NoiseSource::Estimated { force, .. } = noise {
+        for response in &mut responses {
+            response.force_sigma *= force.sigma / initial[1];
+        }
+    }
+    context.whitening = whitening(&context.obs, noise, initial, &responses);
+    Ok(())
 }
 
 /// The least-squares shaft density from the needle force samples,
@@ -684,15 +749,27 @@ mod tests {
     fn a_plane_strain_fit_of_a_thin_slab_is_flagged() {
         let baseline = model(&[]);
         // The plane-stress mimic of nu = 0.48: nu' = 0.48 / 1.48.
-        let warnings = physical_range_warnings(&baseline, &[22.6e3, 0.48 / 1.48, 10.0, 0.002]);
+        let mimic = [22.6e3, 0.48 / 1.48, 10.0, 0.002];
+        let warnings = physical_range_warnings(&baseline, &mimic, Some(0.002));
         assert_eq!(warnings.len(), 1);
         assert!(warnings[0].contains("out_of_plane"), "{}", warnings[0]);
         assert!(warnings[0].contains("about 0.48"), "{}", warnings[0]);
-        assert!(physical_range_warnings(&baseline, &[25.3e3, 0.48, 10.0, 0.002]).is_empty());
+        assert!(warnings[0].contains("0.3243 +- 0.0020"), "{}", warnings[0]);
+        let plausible = [25.3e3, 0.48, 10.0, 0.002];
+        assert!(physical_range_warnings(&baseline, &plausible, None).is_empty());
+        // A phantom of nu = 0.45 fitted a little below it is not flagged
+        // while the shortfall is within twice the standard error, and is
+        // once the fit is that precise.
+        let edge = [15.0e3, 0.4497, 10.0, 0.002];
+        assert!(physical_range_warnings(&baseline, &edge, Some(0.0005)).is_empty());
+        assert_eq!(
+            physical_range_warnings(&baseline, &edge, Some(0.0001)).len(),
+            1
+        );
         let slab = model(&["out_of_plane"]);
         let mut p = vec![25.3e3, 0.3, 10.0, 0.002];
         p.resize(slab.len(), 1.0);
-        let warnings = physical_range_warnings(&slab, &p);
+        let warnings = physical_range_warnings(&slab, &p, None);
         assert_eq!(warnings.len(), 1);
         assert!(!warnings[0].contains("try the"), "{}", warnings[0]);
     }

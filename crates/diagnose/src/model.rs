@@ -11,6 +11,8 @@ use crate::spec::ModelSpec;
 pub(crate) const BASELINE_PARAMETERS: usize = 4;
 /// Index of Young's modulus in a parameter vector.
 pub(crate) const YOUNGS_MODULUS: usize = 0;
+/// Index of Poisson's ratio in a parameter vector.
+pub(crate) const POISSON_RATIO: usize = 1;
 /// Index of the uniform shaft density in a parameter vector.
 pub(crate) const SHAFT_DENSITY: usize = 2;
 /// Index of the probe contact width in a parameter vector.
@@ -114,7 +116,7 @@ impl Model {
     pub fn baseline(&self, p: &[f64]) -> Baseline {
         Baseline {
             youngs_modulus: p[0],
-            poisson_ratio: p[1],
+            poisson_ratio: p[POISSON_RATIO],
             shaft_density: p[2],
             probe_width: p[PROBE_WIDTH],
         }

@@ -182,6 +182,51 @@ fn hidden_material_nonlinearity_is_named_and_fixed() {
     one_hidden("nonlinear", hidden, "material_nonlinearity");
 }
 
+/// The probe frames are weighed with the probe force noise carried to the
+/// markers by the model's own responses. An effect can change those a great
+/// deal: a foundation under a probing campaign (no needles) takes the
+/// baseline's marker misfit from tens of times the noise to the noise.
+/// Once the ladder adds it, its frames are weighed by the model with it,
+/// and the ladder's fit is the fit of that model given.
+#[test]
+fn an_added_effect_weighs_the_probe_frames_by_its_own_responses() {
+    let dir = tempfile::tempdir().unwrap();
+    let hidden = Hidden {
+        platform: 2.0e5,
+        ..Hidden::default()
+    };
+    let written = Written {
+        needles: false,
+        ..Written::default()
+    };
+    let bundle = make_bundle_with(dir.path(), "probing", hidden, 41, written);
+    let ladder = diagnose(&bundle, &ModelSpec::baseline(), &options(true, 1)).unwrap();
+    print(&ladder);
+    let effect = "platform_friction";
+    assert_eq!(
+        ladder.steps[0].verdict,
+        Verdict::MissingEffect(effect.to_string())
+    );
+    let spec = ModelSpec::from_ids(&[effect]).unwrap();
+    let given = diagnose(&bundle, &spec, &options(false, 0)).unwrap();
+    print(&given);
+    let (added, fitted) = (&ladder.diagnosis.fit, &given.diagnosis.fit);
+    eprintln!("added {added:?}\ngiven {fitted:?}");
+    let relative = (added.chi2_marker - fitted.chi2_marker).abs() / fitted.chi2_marker;
+    assert!(relative < 1e-3, "chi2/dof {added:?} against {fitted:?}");
+    let stiffness = |run: &DiagnosisRun| {
+        let p = run
+            .fitted
+            .parameters
+            .iter()
+            .find(|p| p.name == "foundation_stiffness");
+        let p = p.unwrap();
+        (p.value, p.standard_error.unwrap())
+    };
+    let ((a, _), (b, se)) = (stiffness(&ladder), stiffness(&given));
+    assert!((a - b).abs() < 0.1 * se, "{a} against {b} +- {se}");
+}
+
 /// A bundle that states no noise: the force noise comes from the sensor's
 /// repeated samples, the marker noise from the fit at each step (the
 /// frames are holds and depths far apart, so successive frames differ by

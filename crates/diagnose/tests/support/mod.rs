@@ -466,7 +466,7 @@ pub fn make_bundle(dir: &Path, name: &str, hidden: Hidden, seed: u64) -> PathBuf
     make_bundle_with(dir, name, hidden, seed, Written::default())
 }
 
-/// How a bundle states its noise.
+/// How a bundle states its noise, and which trials it holds.
 #[derive(Debug, Clone, Copy)]
 pub struct Written {
     /// The manifest states the noise (`MARKER_SIGMA`, `FORCE_SIGMA`).
@@ -475,6 +475,8 @@ pub struct Written {
     pub odd_noise: bool,
     /// Every row of `markers.csv` gives its own `sx,sy`.
     pub row_sigmas: bool,
+    /// The needle trials are written (without them, a probing campaign).
+    pub needles: bool,
 }
 
 impl Default for Written {
@@ -483,6 +485,7 @@ impl Default for Written {
             state_noise: true,
             odd_noise: false,
             row_sigmas: false,
+            needles: true,
         }
     }
 }
@@ -616,10 +619,9 @@ pub fn make_bundle_with(
         }
     }
     // Needle trials: straight insertions to 50 mm at three speeds.
-    for (k, (x, velocity, day)) in [(0.03, 0.002, 1.0), (0.0375, 0.005, 4.0), (0.045, 0.01, 5.0)]
-        .into_iter()
-        .enumerate()
-    {
+    let needles = [(0.03, 0.002, 1.0), (0.0375, 0.005, 4.0), (0.045, 0.01, 5.0)];
+    let needles = if written.needles { &needles[..] } else { &[] };
+    for (k, &(x, velocity, day)) in needles.iter().enumerate() {
         let trial = builder.trial(Trial {
             id: format!("needle-{k:02}"),
             kind: TrialKind::Needle,
