@@ -4,7 +4,7 @@
 //! against every variable it may depend on.
 
 use needle_diagnose::{
-    DiagnosisRun, MarkerResidual, energy_share_of_worst, residual_concentration,
+    Diagnosis, DiagnosisRun, MarkerResidual, energy_share_of_worst, residual_concentration,
 };
 use plotters::prelude::*;
 
@@ -58,19 +58,61 @@ pub fn print_ladder(run: &DiagnosisRun) {
     for row in ladder_rows(run) {
         println!("| {} |", row.join(" | "));
     }
-    for warning in &run.diagnosis.warnings {
+    if let Some(text) = mesh_check(&run.diagnosis) {
+        println!("mesh check: {text}");
+    }
+    for warning in step_warnings(run) {
         println!("warning: {warning}");
     }
+}
+
+/// Every step's warnings, each once, with the steps it was given at: a
+/// doubt about the effect a step named stays worth reading after the
+/// ladder has moved on.
+fn step_warnings(run: &DiagnosisRun) -> Vec<String> {
+    let mut seen: Vec<(String, Vec<usize>)> = Vec::new();
+    for (step, diagnosis) in run.steps.iter().enumerate() {
+        for warning in &diagnosis.warnings {
+            match seen.iter_mut().find(|(w, _)| w == warning) {
+                Some((_, steps)) => steps.push(step),
+                None => seen.push((warning.clone(), vec![step])),
+            }
+        }
+    }
+    seen.into_iter()
+        .map(|(warning, steps)| {
+            let steps: Vec<String> = steps.iter().map(usize::to_string).collect();
+            format!("(step {}) {warning}", steps.join(", "))
+        })
+        .collect()
+}
+
+/// What the mesh check found, in a sentence.
+fn mesh_check(diagnosis: &Diagnosis) -> Option<String> {
+    let c = diagnosis.discretisation?;
+    let [coarse, fine] = c.refinements;
+    Some(format!(
+        "the plane model at refinement {fine} instead of {coarse} moves the first \
+         fit's markers by {} um rms ({} um at most) and its base forces by {} mN rms, \
+         a chi2 of {:.1}; an effect named with a smaller likelihood ratio is flagged",
+        fixed(c.rms_marker * 1e6, 2),
+        fixed(c.max_marker * 1e6, 2),
+        fixed(c.rms_force * 1e3, 3),
+        c.chi2
+    ))
 }
 
 /// Adds the diagnosis sections to `report`, numbered from `number`.
 pub fn add_sections(report: &mut Report, run: &DiagnosisRun, number: &str) -> Result<(), String> {
     let d = &run.diagnosis;
-    let warnings: String = d
-        .warnings
-        .iter()
-        .map(|w| format!(" <b>Warning:</b> {w}."))
-        .collect();
+    let mut warnings: String = mesh_check(d)
+        .map(|text| format!(" Mesh check: {text}."))
+        .unwrap_or_default();
+    warnings.extend(
+        step_warnings(run)
+            .iter()
+            .map(|w| format!(" <b>Warning</b> {w}.")),
+    );
     report.section(
         &format!("{number} Diagnosis: compare the model with the measurements"),
         &format!(

@@ -1132,7 +1132,7 @@ pub(crate) mod tests {
         Observations::from_campaign(&builder.finish(), 1, 0.005, 0, 1.0).unwrap()
     }
 
-    fn paper_phantom() -> Phantom {
+    pub(crate) fn paper_phantom() -> Phantom {
         Phantom {
             width: 0.075,
             depth: 0.075,

@@ -130,6 +130,7 @@ mod body;
 mod chi2;
 mod concentrate;
 mod diagnose;
+mod discretisation;
 pub mod effect;
 mod error;
 mod fit;
@@ -150,6 +151,7 @@ pub use diagnose::{
     Diagnosis, DiagnosisRun, FittedModel, FittedParameter, ForceResidual, Ladder, LadderRow,
     MarkerResidual, TrialMisfit, Verdict, diagnose, diagnose_campaign,
 };
+pub use discretisation::DiscretisationCheck;
 pub use error::DiagnoseError;
 pub use fit::Fit;
 pub use noise::{ChannelNoise, NoiseBasis, NoiseSource, SampleNoise};

@@ -77,6 +77,15 @@ fn one_hidden(name: &str, hidden: Hidden, expected: &str) {
             "seed {seed}"
         );
         assert_eq!(run.steps[0].candidates[0].effect, expected);
+        // The hidden physics explains far more than the model's mesh could.
+        let mesh = run.steps[0]
+            .discretisation
+            .expect("every diagnosis checks its mesh");
+        let ratio = run.steps[0].candidates[0].likelihood_ratio.unwrap();
+        eprintln!("mesh check {mesh:?}, likelihood ratio {ratio}");
+        assert!(mesh.chi2 < ratio, "{mesh:?}");
+        let doubted = run.steps[0].warnings.iter().any(|w| w.contains("own mesh"));
+        assert!(!doubted, "{:?}", run.steps[0].warnings);
         let last = &run.steps[1];
         assert_eq!(last.model, vec![expected.to_string()]);
         assert!(last.fit.chi2_marker <= 1.3, "{:?}", last.fit);
