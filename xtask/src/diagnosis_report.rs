@@ -66,24 +66,13 @@ pub fn print_ladder(run: &DiagnosisRun) {
     }
 }
 
-/// Every step's warnings, each once, with the steps it was given at: a
-/// doubt about the effect a step named stays worth reading after the
-/// ladder has moved on.
+/// The final model's warnings, after every step's doubt about the effect
+/// it named: a doubt stays worth reading after the ladder has moved on.
 fn step_warnings(run: &DiagnosisRun) -> Vec<String> {
-    let mut seen: Vec<(String, Vec<usize>)> = Vec::new();
-    for (step, diagnosis) in run.steps.iter().enumerate() {
-        for warning in &diagnosis.warnings {
-            match seen.iter_mut().find(|(w, _)| w == warning) {
-                Some((_, steps)) => steps.push(step),
-                None => seen.push((warning.clone(), vec![step])),
-            }
-        }
-    }
-    seen.into_iter()
-        .map(|(warning, steps)| {
-            let steps: Vec<String> = steps.iter().map(usize::to_string).collect();
-            format!("(step {}) {warning}", steps.join(", "))
-        })
+    let doubts = (run.steps.iter().enumerate())
+        .filter_map(|(step, d)| d.doubt.as_ref().map(|text| format!("(step {step}) {text}")));
+    doubts
+        .chain(run.diagnosis.warnings.iter().cloned())
         .collect()
 }
 

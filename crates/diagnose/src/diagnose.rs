@@ -54,6 +54,11 @@ pub struct Diagnosis {
     /// with what that usually means.
     #[serde(default)]
     pub warnings: Vec<String>,
+    /// Why the effect this step names may not be physics: its likelihood
+    /// ratio is within what the model's own mesh could explain (see
+    /// [`DiscretisationCheck::doubt`]).
+    #[serde(default)]
+    pub doubt: Option<String>,
     /// How far the model's own plane mesh moves the first fit's
     /// predictions (the same at every step; see [`DiscretisationCheck`]).
     #[serde(default)]
@@ -324,22 +329,24 @@ pub fn diagnose_campaign(
             * unexplained_misfit(&fitted.fit, fitted.dof, options.chi2_spread);
         let ranked = rank_candidates(&context, &current, &fitted, naming_ratio)?;
         let (verdict, threshold_p) = verdict(&ranked, &fitted, options);
-        let mut warnings = physical_range_warnings(
+        let warnings = physical_range_warnings(
             &current,
             &fitted.params,
             fitted.report.uncertainty.standard_errors[POISSON_RATIO],
         );
         // The check refines the plane body only, which a model with the
         // slab hardly uses.
-        if let Verdict::MissingEffect(id) = &verdict
+        let doubt = if let Verdict::MissingEffect(id) = &verdict
             && !current.spec.effects.iter().any(|e| e == "out_of_plane")
             && let Some(ratio) = ranked
                 .iter()
                 .find(|r| &r.candidate.effect == id)
                 .and_then(|r| r.candidate.likelihood_ratio)
         {
-            warnings.extend(discretisation.doubt(id, ratio));
-        }
+            discretisation.doubt(id, ratio)
+        } else {
+            None
+        };
         let diagnosis = Diagnosis {
             bundle: campaign.name.clone(),
             model: current.spec.effects.clone(),
@@ -349,6 +356,7 @@ pub fn diagnose_campaign(
             noise: noise.clone(),
             threshold_p,
             warnings,
+            doubt,
             discretisation: Some(discretisation),
         };
         ladder.rows.push(LadderRow {
