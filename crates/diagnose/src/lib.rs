@@ -66,6 +66,12 @@
 //! (chi-square per dof 5.5 to 6.6% higher for the force, 0.3 to 0.6% for
 //! the markers).
 //!
+//! Each diagnosis also checks its own mesh (see `discretisation`): the first
+//! fit evaluated with plane elements half the size moves the whitened
+//! predictions by $\Delta^2$ in $\chi^2$, and an effect named with a
+//! likelihood ratio no larger is flagged ([`Diagnosis::doubt`]): it may
+//! stand for the mesh's error rather than physics.
+//!
 //! - **Chi-square per dof** of a channel $c$ with $n_c$ residuals:
 //!   $\chi^2_c / \nu_c$, $\nu_c = n_c - p\, n_c / n$ (the $p$ fitted
 //!   parameters charged in proportion). Under a correct model it is 1 with
