@@ -83,7 +83,7 @@ fn mesh_check(diagnosis: &Diagnosis) -> Option<String> {
     Some(format!(
         "the plane model at refinement {fine} instead of {coarse} moves the first \
          fit's markers by {} um rms ({} um at most) and its base forces by {} mN rms, \
-         a chi2 of {:.1}; an effect named with a smaller likelihood ratio is flagged",
+         a chi2 of {:.1}; an effect named with a likelihood ratio no larger is flagged",
         fixed(c.rms_marker * 1e6, 2),
         fixed(c.max_marker * 1e6, 2),
         fixed(c.rms_force * 1e3, 3),
