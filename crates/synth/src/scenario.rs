@@ -182,7 +182,8 @@ pub struct ProbeTrial {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Needles {
-    /// Insertion velocities (m/s).
+    /// Insertion velocities (m/s); none for a campaign without
+    /// insertions.
     pub velocities: Vec<f64>,
     /// One repeat of all velocities per entry (days since casting).
     pub days: Vec<f64>,
@@ -380,10 +381,8 @@ impl Scenario {
             c.positive(probe.velocity, &f("velocity"))?;
             c.non_negative(probe.day, &f("day"))?;
         }
+        // No velocities (or no days) is a campaign without insertions.
         let n = &self.needles;
-        c.check(!n.velocities.is_empty(), "needles.velocities", || {
-            "needs at least one velocity".into()
-        })?;
         for (i, &v) in n.velocities.iter().enumerate() {
             c.positive(v, &format!("needles.velocities[{i}]"))?;
         }

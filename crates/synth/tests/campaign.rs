@@ -45,6 +45,23 @@ fn files(root: &Path) -> Vec<(String, Vec<u8>)> {
 }
 
 #[test]
+fn a_campaign_without_insertions_writes_its_probes_alone() {
+    for effects in [Effects::none(), Effects::none().with(EffectId::OutOfPlane)] {
+        let mut s = small();
+        s.needles.velocities.clear();
+        s.effects = effects;
+        s.validate("memory").unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let bundle = dir.path().join("bundle");
+        generate(&s, &bundle, &dir.path().join("truth.ron"), |_| {}).unwrap();
+        let campaign = read_bundle(&bundle).unwrap().campaign;
+        let kinds: Vec<TrialKind> = campaign.trials.iter().map(|t| t.trial.kind).collect();
+        assert_eq!(kinds, [TrialKind::Probe]);
+        assert!(campaign.trials[0].markers.as_ref().unwrap().frame_count() > 1);
+    }
+}
+
+#[test]
 fn bundle_reads_back_and_truth_lies_beside_it() {
     let dir = tempfile::tempdir().unwrap();
     let (bundle, truth) = (dir.path().join("bundle"), dir.path().join("truth.ron"));
