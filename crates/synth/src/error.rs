@@ -80,3 +80,49 @@ pub enum SynthError {
         reason: String,
     },
 }
+
+impl SynthError {
+    /// A Newton failure with the trial and state it happened in added to
+    /// its `what` (the solver knows only the phantom); other errors as
+    /// they are.
+    pub(crate) fn during(self, context: impl FnOnce() -> String) -> Self {
+        match self {
+            SynthError::NoConvergence {
+                what,
+                residual,
+                iterations,
+            } => SynthError::NoConvergence {
+                what: format!("{what}, {}", context()),
+                residual,
+                iterations,
+            },
+            other => other,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_newton_failure_names_the_trial_it_happened_in() {
+        let failed = SynthError::NoConvergence {
+            what: "the neo-Hookean phantom".into(),
+            residual: 1e-4,
+            iterations: 200,
+        };
+        let text = failed
+            .during(|| "pressed by the probe at x = 0.012 m".into())
+            .to_string();
+        assert_eq!(
+            text,
+            "Newton iteration did not converge in the neo-Hookean phantom, pressed by the \
+             probe at x = 0.012 m (residual 1e-4 N after 200 iterations)"
+        );
+        // Other errors pass through unchanged.
+        let other = SynthError::Fem(needle_fem::FemError::InvalidMesh("x".into()));
+        let before = other.to_string();
+        assert_eq!(other.during(|| "context".into()).to_string(), before);
+    }
+}

@@ -289,16 +289,22 @@ fn insert_one(
                 });
             }
             iteration += 1;
-            let (solved, next) = solver.solve_and_place(
-                world,
-                &rim,
-                &run,
-                tip,
-                &placed,
-                &guess,
-                shaft_step,
-                &mut solves,
-            )?;
+            let (solved, next) = solver
+                .solve_and_place(
+                    world,
+                    &rim,
+                    &run,
+                    tip,
+                    &placed,
+                    &guess,
+                    shaft_step,
+                    &mut solves,
+                )
+                .map_err(|e| {
+                    e.during(|| {
+                        format!("the needle on the line x = {} m at {tip} m deep", plan.line)
+                    })
+                })?;
             largest_move = next.moved_from(&placed);
             if largest_move < CONSISTENCY_TOLERANCE {
                 // Keep the placement that was applied, so that the field

@@ -117,7 +117,16 @@ pub(crate) fn press(world: &World, probe: &ProbeTrial) -> Result<ProbeRun, Synth
         for &d in &held {
             prescribed[d] = delta;
         }
-        u = solver.solve(body, &vec![0.0; dofs], &u, &prescribed)?;
+        u = solver
+            .solve(body, &vec![0.0; dofs], &u, &prescribed)
+            .map_err(|e| {
+                e.during(|| {
+                    format!(
+                        "pressed by the probe at x = {} m to {delta:.6} m of its {} m",
+                        probe.x, probe.indentation
+                    )
+                })
+            })?;
         let reactions = solver.internal_forces(body, &u);
         record(delta, u.clone(), &reactions);
     }
