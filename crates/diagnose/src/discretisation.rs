@@ -136,7 +136,6 @@ mod tests {
             .unwrap()
         };
         let (first, second) = (check(0, 1), check(1, 2));
-        eprintln!("{first:?}\n{second:?}");
         // Quadratic elements, singular loads: an observed order of at least
         // 1.5 between the two halvings.
         let order = (first.rms_marker / second.rms_marker).log2();
