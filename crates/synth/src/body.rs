@@ -15,7 +15,7 @@ use needle_fem::material::{Formulation, Materials};
 use needle_fem::mesh::{BoundaryFacet, Mesh, RectangleMesh};
 
 use crate::error::SynthError;
-use crate::grid::{PLANE_GRADING_LEVELS, grade, grid_lines};
+use crate::grid::{NEO_HOOKEAN_GRADING_LEVELS, PLANE_GRADING_LEVELS, grade, grid_lines};
 use crate::scenario::{Scenario, SlabGrading};
 use crate::slab_mesh::{Span, grade_plan, layered_slab, upper_planes};
 
@@ -89,8 +89,13 @@ impl Body {
             // `grid`).
             let mut singular_x = vec![0.0, p.width];
             singular_x.extend_from_slice(x_edges);
-            grade(&mut xs, &singular_x, target, PLANE_GRADING_LEVELS);
-            grade(&mut ys, &[0.0, p.depth], target, PLANE_GRADING_LEVELS);
+            let levels = if scenario.effects.material_nonlinearity.is_some() {
+                NEO_HOOKEAN_GRADING_LEVELS
+            } else {
+                PLANE_GRADING_LEVELS
+            };
+            grade(&mut xs, &singular_x, target, levels);
+            grade(&mut ys, &[0.0, p.depth], target, levels);
         }
         let element_size = xs
             .windows(2)

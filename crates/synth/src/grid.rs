@@ -21,6 +21,19 @@
 /// levels (`docs/truth-world.md`).
 pub(crate) const PLANE_GRADING_LEVELS: usize = 7;
 
+/// Levels of grading of the plane truth when its material is neo-Hookean
+/// (`material_nonlinearity`): elements shrink to $h/8$ (78 µm at
+/// refinement 6), not $h/128$. The finite-strain Newton solve of a 4 mm
+/// probe stagnates with inverted elements at the punch corner when the
+/// elements there are much smaller than the indentation: on the
+/// `material-nonlinearity.ron` phantom all four probes solve with 0 and
+/// 3 levels and the first fails with 4 and with 7 (a 60 x 90 mm phantom
+/// at refinement 2 solved with 4 levels, h/16 = 156 µm, and lost a probe
+/// with 5). Three levels cut the largest marker difference from a finer
+/// mesh (refinement 12, 2 levels) from 61 µm on the uniform mesh to
+/// 12 µm (`docs/truth-world.md`, "The neo-Hookean truth's mesh").
+pub(crate) const NEO_HOOKEAN_GRADING_LEVELS: usize = 3;
+
 /// Grid lines over `[0, extent]`: `count` equally spaced marker lines plus
 /// `extra` lines, every interval split into pieces no longer than `target`.
 /// Extra lines closer than a twentieth of `target` to another are dropped.

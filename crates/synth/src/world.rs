@@ -141,7 +141,7 @@ impl<'s> World<'s> {
     /// The response of the phantom on `day` with the supports held.
     pub fn response(&self, day: f64) -> Result<Response, SynthError> {
         if self.scenario.effects.material_nonlinearity.is_some() {
-            return Ok(Response::NeoHookean(self.neo_hookean(day, &[])?));
+            return Ok(Response::NeoHookean(Box::new(self.neo_hookean(day, &[])?)));
         }
         let moduli = self.moduli(day);
         if !self.springs.is_empty() {
@@ -228,7 +228,7 @@ pub(crate) enum Response {
         scale: f64,
     },
     /// Neo-Hookean material solved by Newton iteration.
-    NeoHookean(NeoHookean),
+    NeoHookean(Box<NeoHookean>),
 }
 
 impl Response {

@@ -20,7 +20,7 @@
 //! tangent equals the linear stiffness, so the effect only shows at large
 //! strains.
 
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
 use needle_fem::element::stiffness::{ReferenceGradients, physical_gradients};
 use serde::{Deserialize, Serialize};
@@ -29,7 +29,7 @@ use super::{EffectId, TruthEffect};
 use crate::body::Body;
 use crate::error::SynthError;
 use crate::scenario::{FieldChecker, Scenario};
-use crate::system::{Factorised, Pivots, Stiffness};
+use crate::system::{Analysis, Factorised, Layout, Pivots, Stiffness};
 
 /// Neo-Hookean truth material (same small-strain constants as the phantom).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -78,6 +78,12 @@ pub(crate) struct NeoHookean {
     constants: Vec<(f64, f64)>,
     springs: Vec<(usize, usize, f64)>,
     held: Vec<bool>,
+    /// The tangent's pattern: the elements' entries in loop order, then
+    /// the springs'.
+    layout: Layout,
+    /// The analysis of the tangent's free block, shared by every
+    /// refactorisation.
+    analysis: Arc<Analysis>,
     /// The tangent last factorised, reused while it converges fast.
     tangent: Mutex<Option<Factorised>>,
 }
@@ -103,10 +109,26 @@ impl NeoHookean {
                 reason: format!("region {r} has no material"),
             });
         }
+        let mut positions = Vec::new();
+        for e in 0..body.element_count() {
+            let dofs: Vec<usize> = body
+                .element(e)
+                .iter()
+                .flat_map(|&node| (0..body.dim).map(move |i| node * body.dim + i))
+                .collect();
+            for &r in &dofs {
+                positions.extend(dofs.iter().map(|&s| (r, s)));
+            }
+        }
+        positions.extend(springs.iter().map(|&(i, j, _)| (i, j)));
+        let layout = Layout::new(body.dof_count(), &positions)?;
+        let analysis = Arc::new(layout.analyse(&held, "the neo-Hookean tangent")?);
         Ok(Self {
             constants: moduli.iter().map(|&(e, nu)| lame(e, nu)).collect(),
             springs: springs.to_vec(),
             held,
+            layout,
+            analysis,
             tangent: Mutex::new(None),
         })
     }
@@ -124,18 +146,13 @@ impl NeoHookean {
     /// The tangent stiffness at `u`, springs included.
     pub(crate) fn tangent_at(&self, body: &Body, u: &[f64]) -> Result<Stiffness, SynthError> {
         let mut f = vec![0.0; u.len()];
-        let mut triplets = self.springs.clone();
-        self.element_loop(body, u, &mut f, Some(&mut triplets));
-        Stiffness::from_triplets(u.len(), &triplets)
+        let mut values = Vec::with_capacity(self.layout.entry_count());
+        self.element_loop(body, u, &mut f, Some(&mut values));
+        values.extend(self.springs.iter().map(|&(_, _, v)| v));
+        self.layout.assemble(&values)
     }
 
-    fn element_loop(
-        &self,
-        body: &Body,
-        u: &[f64],
-        f: &mut [f64],
-        tangent: Option<&mut Vec<(usize, usize, f64)>>,
-    ) {
+    fn element_loop(&self, body: &Body, u: &[f64], f: &mut [f64], tangent: Option<&mut Vec<f64>>) {
         match body.dim {
             2 => self.element_loop_kind::<2, 6>(body, u, f, tangent),
             _ => self.element_loop_kind::<3, 10>(body, u, f, tangent),
@@ -147,7 +164,7 @@ impl NeoHookean {
         body: &Body,
         u: &[f64],
         f: &mut [f64],
-        mut tangent: Option<&mut Vec<(usize, usize, f64)>>,
+        mut tangent: Option<&mut Vec<f64>>,
     ) {
         let reference = ReferenceGradients::<D, N>::for_degree(2);
         let scale = body.plane_factor();
@@ -221,15 +238,8 @@ impl NeoHookean {
                 }
             }
             if let Some(t) = tangent.as_deref_mut() {
-                for r in 0..N * D {
-                    for s in 0..N * D {
-                        t.push((
-                            nodes[r / D] * D + r % D,
-                            nodes[s / D] * D + s % D,
-                            ke[r * (N * D) + s],
-                        ));
-                    }
-                }
+                // Row-major, in the order of `NeoHookean::new`'s positions.
+                t.extend_from_slice(&ke);
             }
         }
     }
@@ -243,13 +253,15 @@ impl NeoHookean {
     fn factorise_at(&self, body: &Body, u: &[f64]) -> Result<(Stiffness, Factorised), SynthError> {
         let tangent = self.tangent_at(body, u)?;
         let what = "the neo-Hookean tangent";
-        let factorised = Factorised::new(&tangent, &self.held, what)
-            .or_else(|_| Factorised::with_pivots(&tangent, &self.held, what, Pivots::AnySign));
+        let analysis = &self.analysis;
+        let factorised = Factorised::with_analysis(analysis, &tangent, what, Pivots::Positive)
+            .or_else(|_| Factorised::with_analysis(analysis, &tangent, what, Pivots::AnySign));
         match factorised {
             Ok(f) => Ok((tangent, f)),
             Err(_) => {
                 let rest = self.tangent_at(body, &vec![0.0; u.len()])?;
-                let f = Factorised::new(&rest, &self.held, "the neo-Hookean stiffness at rest")?;
+                let what = "the neo-Hookean stiffness at rest";
+                let f = Factorised::with_analysis(analysis, &rest, what, Pivots::Positive)?;
                 Ok((rest, f))
             }
         }
