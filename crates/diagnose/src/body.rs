@@ -79,9 +79,6 @@ type ProbeSeriesEntry = ([u64; 3], ProbeSeries);
 /// material).
 pub(crate) struct Entry<const D: usize> {
     pub problem: LinearProblem<D>,
-    /// Whether `problem` is a factorisation of the rigid template (no
-    /// springs), whose storage a new rigid factorisation may take over.
-    rigid: bool,
     /// The normalised materials it was factorised with.
     materials: Materials,
     probes: Mutex<Vec<ProbeResponses>>,
@@ -288,34 +285,34 @@ impl<const D: usize> Body<D> {
                 .map(|(e, &m)| Material::for_region(e, m, poisson_ratio))
                 .collect::<Result<_, _>>()?,
         );
-        let rigid = supports.fixed_face_compliance <= 0.0 && supports.foundation <= 0.0;
         let capacity = if D == 2 {
             PLANE_CACHE_SIZE
         } else {
             SLAB_CACHE_SIZE
         };
-        // The oldest entry leaves the cache now rather than once this one
-        // is in: if no evaluation holds it any more, a rigid problem takes
-        // over its storage (the assembled matrix and the factor, 74 MB on
-        // the default campaign's graded slab) instead of a fresh clone of
-        // the template, every value of which the factorisation overwrites.
+        // An entry leaves the cache now rather than once this one is in:
+        // the oldest that no evaluation holds any more (else the oldest),
+        // whose storage (the assembled matrix and the factor, 74 MB on the
+        // default campaign's graded slab) the new problem takes over
+        // instead of clearing fresh pages, every value of which the
+        // factorisation would overwrite.
         let evicted = {
             let mut cache = self.cache.lock().expect("cache lock");
-            (cache.len() >= capacity).then(|| cache.remove(0).1)
+            (cache.len() >= capacity).then(|| {
+                let idle = cache
+                    .iter()
+                    .position(|(_, entry)| Arc::strong_count(entry) == 1)
+                    .unwrap_or(0);
+                cache.remove(idle).1
+            })
         };
         let recycled = evicted
             .and_then(|entry| Arc::try_unwrap(entry).ok())
-            .filter(|entry| rigid && entry.rigid)
             .map(|entry| entry.problem);
-        let mut problem = match recycled {
-            Some(problem) => problem,
-            None if rigid => self.rigid.clone(),
-            None => self.supported(supports)?,
-        };
+        let mut problem = self.unfactorised(supports, recycled)?;
         problem.factorize(&materials)?;
         let entry = Arc::new(Entry {
             problem,
-            rigid,
             materials,
             probes: Mutex::new(Vec::new()),
             series: Mutex::new(Vec::new()),
@@ -328,24 +325,40 @@ impl<const D: usize> Body<D> {
         Ok(Factorized { entry, scale })
     }
 
-    /// The unfactorised problem with elastic supports: a clone of the
-    /// template of their layout (compliant fixed faces, foundation), built
-    /// once with unit springs, with the springs scaled, so that a new
-    /// stiffness costs no new ordering or symbolic analysis.
-    fn supported(&self, supports: SupportSpec) -> Result<LinearProblem<D>, DiagnoseError> {
+    /// The unfactorised problem with `supports`: a copy of the rigid
+    /// problem, or of the template of their layout (compliant fixed faces,
+    /// foundation), built once with unit springs, with the springs scaled,
+    /// so that a new stiffness costs no new ordering or symbolic analysis.
+    /// The copy goes into `recycled`'s storage where it has the same
+    /// layout (see [`LinearProblem`]'s `clone_from`).
+    fn unfactorised(
+        &self,
+        supports: SupportSpec,
+        recycled: Option<LinearProblem<D>>,
+    ) -> Result<LinearProblem<D>, DiagnoseError> {
+        let copy = |template: &LinearProblem<D>| match recycled {
+            Some(mut problem) => {
+                problem.clone_from(template);
+                problem
+            }
+            None => template.clone(),
+        };
         let compliant = supports.fixed_face_compliance > 0.0;
         let founded = supports.foundation > 0.0;
+        if !(compliant || founded) {
+            return Ok(copy(&self.rigid));
+        }
         let mut problem = {
             let mut templates = self.templates.lock().expect("template lock");
             match templates
                 .iter()
                 .find(|(layout, _)| *layout == [compliant, founded])
             {
-                Some((_, template)) => template.clone(),
+                Some((_, template)) => copy(template),
                 None => {
                     let template = self.unit_springs(compliant, founded)?;
                     templates.push(([compliant, founded], template.clone()));
-                    template
+                    copy(&template)
                 }
             }
         };
@@ -449,6 +462,47 @@ impl<const D: usize> Body<D> {
             .expect("probe cache lock")
             .push((bits, responses));
         Ok(out)
+    }
+
+    /// Solves the unit responses (see [`Body::probe_responses`]) of every
+    /// patch of `contacts` not solved on this factorisation yet, all in one
+    /// blocked solve: three loads at a time used the factor's kernels at a
+    /// quarter of the rate forty did (`docs/benchmarks.md`, session 29).
+    pub fn solve_probe_responses(
+        &self,
+        locator: &Locator<'_, D>,
+        factorized: &Factorized<D>,
+        contacts: &[[f64; 2]],
+        width: f64,
+    ) -> Result<(), DiagnoseError> {
+        let mut missing: Vec<[u64; 3]> = Vec::new();
+        {
+            let probes = factorized.entry.probes.lock().expect("probe cache lock");
+            for contact in contacts {
+                let bits = [contact[0].to_bits(), contact[1].to_bits(), width.to_bits()];
+                if !missing.contains(&bits) && !probes.iter().any(|(k, _)| *k == bits) {
+                    missing.push(bits);
+                }
+            }
+        }
+        if missing.is_empty() {
+            return Ok(());
+        }
+        let mut loads = Vec::with_capacity(3 * missing.len());
+        for bits in &missing {
+            let contact = [f64::from_bits(bits[0]), f64::from_bits(bits[1])];
+            for axis in 0..3 {
+                loads.push(self.unit_probe_load(locator, contact, width, axis)?);
+            }
+        }
+        let loads: Vec<&[f64]> = loads.iter().map(Vec::as_slice).collect();
+        let solved = factorized.entry.problem.displacements_many(&loads)?;
+        let mut probes = factorized.entry.probes.lock().expect("probe cache lock");
+        for (bits, solved) in missing.into_iter().zip(solved.chunks_exact(3)) {
+            let responses = [0, 1, 2].map(|k| self.markers(&solved[k], 1.0));
+            probes.push((bits, responses));
+        }
+        Ok(())
     }
 
     /// The neo-Hookean terms $u_2 + u_3$ of the marker displacements under
@@ -869,10 +923,10 @@ mod tests {
         assert_eq!(drag, axis);
     }
 
-    /// Once the cache is full and no evaluation holds its oldest entry, a
-    /// new rigid factorisation takes over that entry's storage; it solves
-    /// to the bit as a factorisation on a fresh body, and a compliant one
-    /// (its own template) is not handed the rigid storage.
+    /// Once the cache is full, a new factorisation takes over the storage
+    /// of an entry no evaluation holds; it solves to the bit as a
+    /// factorisation on a fresh body, whether the storage was of its own
+    /// support layout or of another.
     #[test]
     fn a_factorisation_on_recycled_storage_solves_as_a_fresh_one() {
         let slab = slab_body();
@@ -901,14 +955,21 @@ mod tests {
             u.into_iter().next().unwrap()
         };
         let rigid = SupportSpec::default();
-        let compliant = SupportSpec {
-            fixed_face_compliance: 1e-6,
-            ..SupportSpec::default()
-        };
         for k in 0..SLAB_CACHE_SIZE {
             solve(&slab, 0.30 + 0.01 * k as f64, rigid);
         }
-        for (nu, supports) in [(0.48, rigid), (0.47, compliant), (0.46, rigid)] {
+        let compliance = |c: f64| SupportSpec {
+            fixed_face_compliance: c,
+            ..SupportSpec::default()
+        };
+        // Rigid storage, then (once compliant entries fill the cache)
+        // compliant storage, each taken over by both layouts.
+        let filling = (2..=SLAB_CACHE_SIZE).map(|k| (0.40, compliance(k as f64 * 1e-6)));
+        let cases = [(0.48, rigid), (0.47, compliance(1e-6))]
+            .into_iter()
+            .chain(filling)
+            .chain([(0.45, compliance(1e-5)), (0.46, rigid)]);
+        for (nu, supports) in cases {
             let recycled = solve(&slab, nu, supports);
             let fresh = solve(&slab_body(), nu, supports);
             assert!(

@@ -599,6 +599,17 @@ impl Forward {
         // their own (see `proportional`): its factorisation, their scale.
         let scale_of = |t: usize| Self::modulus(body, model, p, &obs.trials[t], 0);
         let locator = body.locator();
+        let contacts: Vec<[f64; 2]> = columns
+            .iter()
+            .filter_map(|column| match *column {
+                Column::Probe {
+                    contact, axis: 0, ..
+                } => Some(contact),
+                _ => None,
+            })
+            .collect();
+        let width = model.baseline(p).probe_width;
+        body.solve_probe_responses(&locator, &shared, &contacts, width)?;
         let mut needles = Vec::new();
         for (k, column) in columns.iter().enumerate() {
             match *column {

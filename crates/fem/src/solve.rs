@@ -20,12 +20,14 @@
 //! no prescribed dof and no support resists makes $K_{ff}$ singular and is
 //! reported as [`FemError::Unconstrained`] rather than a garbage solution.
 
+use std::cell::Cell;
+use std::mem::MaybeUninit;
 use std::sync::Arc;
 
-use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::dyn_stack::{MemStack, StackReq};
 use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholesky, factorize_symbolic_cholesky};
 use faer::sparse::{SparseColMat, SparseColMatRef, SymbolicSparseColMat};
-use faer::{Conj, Mat, MatMut, Side};
+use faer::{Conj, MatMut, Side};
 use nalgebra::DMatrix;
 
 use crate::assemble::{Assembler, multiply};
@@ -46,7 +48,10 @@ pub struct Solution {
 }
 
 /// A linear elastic problem with a kept factorisation.
-#[derive(Debug, Clone)]
+///
+/// Clones share the symbolic analysis; [`Clone::clone_from`] between two
+/// of them copies only values into the storage the target already has.
+#[derive(Debug)]
 pub struct LinearProblem<const D: usize> {
     assembler: Assembler<D>,
     supports: Vec<Support<D>>,
@@ -114,22 +119,21 @@ impl CholeskyFactor {
         // last factor's, so this costs no page faults.
         self.values.clear();
         self.values.resize(self.symbolic.len_val(), 0.0);
-        let mut scratch = MemBuffer::try_new(
-            self.symbolic
-                .factorize_numeric_llt_scratch::<f64>(par, Default::default()),
-        )
-        .map_err(|e| FemError::Factorization(format!("scratch: {e:?}")))?;
-        self.symbolic
-            .factorize_numeric_llt::<f64>(
+        let scratch = self
+            .symbolic
+            .factorize_numeric_llt_scratch::<f64>(par, Default::default());
+        with_scratch(scratch, |stack| {
+            self.symbolic.factorize_numeric_llt::<f64>(
                 &mut self.values,
                 lower,
                 Side::Lower,
                 Default::default(),
                 par,
-                MemStack::new(&mut scratch),
+                stack,
                 Default::default(),
             )
-            .map_err(|e| FemError::Factorization(format!("{e:?}")))?;
+        })
+        .map_err(|e| FemError::Factorization(format!("{e:?}")))?;
         self.factorized = true;
         Ok(())
     }
@@ -147,16 +151,87 @@ impl CholeskyFactor {
 
     fn solve_factorized(&self, rhs: MatMut<'_, f64>) {
         let par = faer::get_global_parallelism();
-        let mut scratch = MemBuffer::new(
-            self.symbolic
-                .solve_in_place_scratch::<f64>(rhs.ncols(), par),
-        );
-        LltRef::new(&self.symbolic, &self.values).solve_in_place_with_conj(
-            Conj::No,
-            rhs,
-            par,
-            MemStack::new(&mut scratch),
-        );
+        let scratch = self
+            .symbolic
+            .solve_in_place_scratch::<f64>(rhs.ncols(), par);
+        with_scratch(scratch, |stack| {
+            LltRef::new(&self.symbolic, &self.values).solve_in_place_with_conj(
+                Conj::No,
+                rhs,
+                par,
+                stack,
+            );
+        });
+    }
+}
+
+thread_local! {
+    /// This thread's workspace for faer's factorisations and solves.
+    static SCRATCH: Cell<Vec<MaybeUninit<u8>>> = const { Cell::new(Vec::new()) };
+    /// This thread's storage for the right-hand sides of
+    /// [`LinearProblem::displacements_many`].
+    static RIGHT_HAND_SIDES: Cell<Vec<f64>> = const { Cell::new(Vec::new()) };
+}
+
+/// Runs `work` on this thread's workspace, grown to `requirement`.
+///
+/// A fresh workspace per call cost as much as the arithmetic it served: a
+/// slab's solve of some fifty loads needs tens of megabytes, which the
+/// allocator maps anew every time, and the kernel's clearing of those pages
+/// was a tenth of the default diagnosis's profile (`docs/benchmarks.md`,
+/// session 29). The workspace is taken out while in use, so a call nested
+/// in `work` (rayon runs other jobs on a thread that waits in a join) gets
+/// one of its own instead of aliasing it.
+fn with_scratch<R>(requirement: StackReq, work: impl FnOnce(&mut MemStack) -> R) -> R {
+    let bytes = requirement.unaligned_bytes_required();
+    let mut buffer = SCRATCH.take();
+    if buffer.len() < bytes {
+        buffer.resize(bytes, MaybeUninit::uninit());
+    }
+    let out = work(MemStack::new(&mut buffer[..bytes]));
+    SCRATCH.set(buffer);
+    out
+}
+
+impl<const D: usize> Clone for LinearProblem<D> {
+    fn clone(&self) -> Self {
+        Self {
+            assembler: self.assembler.clone(),
+            supports: self.supports.clone(),
+            dirichlet: self.dirichlet.clone(),
+            free: self.free.clone(),
+            reduced_index: self.reduced_index.clone(),
+            stiffness: self.stiffness.clone(),
+            springs: self.springs.clone(),
+            reduced: self.reduced.clone(),
+            gather: self.gather.clone(),
+            factor: self.factor.clone(),
+        }
+    }
+
+    /// Between clones of one problem (the same symbolic analysis), copies
+    /// the values that may differ (supports' stiffnesses, prescribed
+    /// values, $K$, $K_{ff}$ and the factor) into `self`'s storage: mesh,
+    /// patterns and dof maps cannot differ, since no method changes them.
+    /// A caller that factorises many materials in turn (the diagnosis: a
+    /// 74 MB factor on the default campaign's slab) then reuses the pages
+    /// of a problem it is done with instead of clearing new ones.
+    fn clone_from(&mut self, source: &Self) {
+        if !Arc::ptr_eq(&self.factor.symbolic, &source.factor.symbolic) {
+            *self = source.clone();
+            return;
+        }
+        self.supports.clone_from(&source.supports);
+        self.dirichlet.clone_from(&source.dirichlet);
+        self.stiffness
+            .val_mut()
+            .copy_from_slice(source.stiffness.val());
+        for (mine, theirs) in self.springs.iter_mut().zip(&source.springs) {
+            mine.1 = theirs.1;
+        }
+        self.reduced.val_mut().copy_from_slice(source.reduced.val());
+        self.factor.values.clone_from(&source.factor.values);
+        self.factor.factorized = source.factor.factorized;
     }
 }
 
@@ -461,28 +536,33 @@ impl<const D: usize> LinearProblem<D> {
             vec![0.0; dof_count]
         };
         let free = self.free.len();
-        let mut rhs = Mat::<f64>::zeros(free, loads.len());
-        for (c, f) in loads.iter().enumerate() {
-            let column = rhs
-                .col_mut(c)
-                .try_as_col_major_mut()
-                .expect("contiguous column");
-            for (value, &d) in column.as_slice_mut().iter_mut().zip(&self.free) {
-                *value = f[d] - lift[d];
-            }
-        }
-        solve_split(factor, rhs.as_mut());
+        // This thread's kept storage (see `with_scratch`): on the default
+        // campaign's slab the right-hand sides of one call take 40 MB.
+        let mut storage = RIGHT_HAND_SIDES.take();
+        storage.clear();
+        storage.resize(free * loads.len(), 0.0);
         let mut out = Vec::with_capacity(loads.len());
+        if free > 0 {
+            for (column, f) in storage.chunks_exact_mut(free).zip(loads) {
+                for (value, &d) in column.iter_mut().zip(&self.free) {
+                    *value = f[d] - lift[d];
+                }
+            }
+            solve_split(
+                factor,
+                MatMut::from_column_major_slice_mut(&mut storage, free, loads.len()),
+            );
+        }
         for c in 0..loads.len() {
-            let column = rhs.col(c).try_as_col_major().expect("contiguous column");
             let mut u = prescribed.clone();
-            for (&value, &d) in column.as_slice().iter().zip(&self.free) {
+            for (&value, &d) in storage[c * free..(c + 1) * free].iter().zip(&self.free) {
                 u[d] = value;
             }
-            if u.iter().any(|v| !v.is_finite()) {
-                return Err(FemError::NonFinite("displacement solution"));
-            }
             out.push(u);
+        }
+        RIGHT_HAND_SIDES.set(storage);
+        if out.iter().flatten().any(|v| !v.is_finite()) {
+            return Err(FemError::NonFinite("displacement solution"));
         }
         Ok(out)
     }

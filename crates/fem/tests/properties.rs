@@ -532,6 +532,67 @@ fn scaled_supports_match_a_problem_built_with_them() {
     assert!(scaled.scale_support(2, 2.0).is_err());
 }
 
+/// `clone_from` between clones of one problem copies supports, prescribed
+/// values and factor into the target's own storage and answers as the
+/// source; from a problem of another lineage it is a plain clone.
+#[test]
+fn clone_from_answers_as_the_source_in_the_target_s_storage() {
+    let mesh = distorted_square(ElementKind::Tri6, 3, 0.2, 5);
+    let back = mesh.facets_on_face(needle_fem::Face::Back);
+    let support = vec![needle_fem::Support::Boundary {
+        facets: back,
+        stiffness: [1.0e3, 2.0e3],
+    }];
+    let left = Dirichlet::fixed_face(&mesh, needle_fem::Face::Left);
+    let loads: Vec<f64> = (0..mesh.dof_count())
+        .map(|d| (0.3 * d as f64).sin() * 1e-3)
+        .collect();
+    let template = LinearProblem::new(
+        Assembler::new(mesh.clone(), PLANE).unwrap(),
+        support.clone(),
+        left.clone(),
+    )
+    .unwrap();
+    let mut source = template.clone();
+    source.scale_support(0, 7.0).unwrap();
+    let (dof, _) = left.iter().next().unwrap();
+    source.set_prescribed(dof, 1e-4).unwrap();
+    source
+        .factorize(&Materials::homogeneous(Material::new(2.0e4, 0.45).unwrap()))
+        .unwrap();
+    let expected = source.solve(&loads).unwrap();
+    let mut target = template.clone();
+    target
+        .factorize(&Materials::homogeneous(Material::new(1.0e4, 0.3).unwrap()))
+        .unwrap();
+    let storage = target.reduced_stiffness().val().as_ptr();
+    target.clone_from(&source);
+    assert_eq!(target.reduced_stiffness().val().as_ptr(), storage);
+    assert_eq!(target.supports(), source.supports());
+    assert_eq!(target.dirichlet(), source.dirichlet());
+    let same = |s: &needle_fem::Solution| {
+        s.displacement == expected.displacement && s.reactions == expected.reactions
+    };
+    assert!(same(&target.solve(&loads).unwrap()));
+    // Refactorised after the copy, it still answers as the source.
+    target
+        .factorize(&Materials::homogeneous(Material::new(2.0e4, 0.45).unwrap()))
+        .unwrap();
+    assert!(same(&target.solve(&loads).unwrap()));
+    // Another lineage (its own symbolic analysis): a plain clone.
+    let mut other = LinearProblem::new(
+        Assembler::new(mesh, PLANE).unwrap(),
+        vec![],
+        Dirichlet::fixed_face(
+            &distorted_square(ElementKind::Tri6, 3, 0.2, 5),
+            needle_fem::Face::Back,
+        ),
+    )
+    .unwrap();
+    other.clone_from(&source);
+    assert!(same(&other.solve(&loads).unwrap()));
+}
+
 /// Refactorising with new materials reuses the pattern and gives the same
 /// answer as a fresh problem; displacement scales as 1/E.
 #[test]
