@@ -175,10 +175,10 @@ thread_local! {
 
 /// Runs `work` on this thread's workspace, grown to `requirement`.
 ///
-/// A fresh workspace per call cost as much as the arithmetic it served: a
-/// slab's solve of some fifty loads needs tens of megabytes, which the
-/// allocator maps anew every time, and the kernel's clearing of those pages
-/// was a tenth of the default diagnosis's profile (`docs/benchmarks.md`,
+/// A fresh workspace per call is mapped anew by the allocator once it is
+/// large (a slab's solve of forty loads), and the kernel clears its pages:
+/// in the default diagnosis, fresh pages cost 14 to 19 s of system time,
+/// and this workspace was a sixth of their faults (`docs/benchmarks.md`,
 /// session 29). The workspace is taken out while in use, so a call nested
 /// in `work` (rayon runs other jobs on a thread that waits in a join) gets
 /// one of its own instead of aliasing it.
@@ -538,10 +538,10 @@ impl<const D: usize> LinearProblem<D> {
         let free = self.free.len();
         // This thread's kept storage (see `with_scratch`): on the default
         // campaign's slab the right-hand sides of one call take 40 MB.
+        // Every value is written below before it is read: no zeroing.
         let mut storage = RIGHT_HAND_SIDES.take();
-        storage.clear();
         storage.resize(free * loads.len(), 0.0);
-        let mut out = Vec::with_capacity(loads.len());
+        storage.truncate(free * loads.len());
         if free > 0 {
             for (column, f) in storage.chunks_exact_mut(free).zip(loads) {
                 for (value, &d) in column.iter_mut().zip(&self.free) {
@@ -553,15 +553,19 @@ impl<const D: usize> LinearProblem<D> {
                 MatMut::from_column_major_slice_mut(&mut storage, free, loads.len()),
             );
         }
-        for c in 0..loads.len() {
-            let mut u = prescribed.clone();
-            for (&value, &d) in storage[c * free..(c + 1) * free].iter().zip(&self.free) {
-                u[d] = value;
-            }
-            out.push(u);
-        }
+        // The prescribed values are finite (`Dirichlet` refuses others).
+        let finite = storage.iter().all(|v| v.is_finite());
+        let out = (0..loads.len())
+            .map(|c| {
+                let mut u = prescribed.clone();
+                for (&value, &d) in storage[c * free..(c + 1) * free].iter().zip(&self.free) {
+                    u[d] = value;
+                }
+                u
+            })
+            .collect();
         RIGHT_HAND_SIDES.set(storage);
-        if out.iter().flatten().any(|v| !v.is_finite()) {
+        if !finite {
             return Err(FemError::NonFinite("displacement solution"));
         }
         Ok(out)
