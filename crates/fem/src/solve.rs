@@ -178,7 +178,7 @@ thread_local! {
 /// A fresh workspace per call is mapped anew by the allocator once it is
 /// large (a slab's solve of forty loads), and the kernel clears its pages:
 /// in the default diagnosis, fresh pages cost 14 to 19 s of system time,
-/// and this workspace was a sixth of their faults (`docs/benchmarks.md`,
+/// and this workspace was a fifth of their faults (`docs/benchmarks.md`,
 /// session 29). The workspace is taken out while in use, so a call nested
 /// in `work` (rayon runs other jobs on a thread that waits in a join) gets
 /// one of its own instead of aliasing it.
@@ -537,7 +537,7 @@ impl<const D: usize> LinearProblem<D> {
         };
         let free = self.free.len();
         // This thread's kept storage (see `with_scratch`): on the default
-        // campaign's slab the right-hand sides of one call take 40 MB.
+        // campaign's slab the 40 right-hand sides of one call take 12 MB.
         // Every value is written below before it is read: no zeroing.
         let mut storage = RIGHT_HAND_SIDES.take();
         storage.resize(free * loads.len(), 0.0);
