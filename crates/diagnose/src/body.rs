@@ -445,23 +445,13 @@ impl<const D: usize> Body<D> {
                     .collect()
             })
         };
-        let probes = &factorized.entry.probes;
-        if let Some((_, r)) = probes
-            .lock()
-            .expect("probe cache lock")
+        self.solve_probe_responses(locator, factorized, &[contact], width)?;
+        let probes = factorized.entry.probes.lock().expect("probe cache lock");
+        let (_, responses) = probes
             .iter()
             .find(|(k, _)| *k == bits)
-        {
-            return Ok(scaled(r));
-        }
-        let solved = self.unit_probe_solutions(locator, factorized, contact, width, &[0, 1, 2])?;
-        let responses = [0, 1, 2].map(|k| self.markers(&solved[k], 1.0));
-        let out = scaled(&responses);
-        probes
-            .lock()
-            .expect("probe cache lock")
-            .push((bits, responses));
-        Ok(out)
+            .expect("solved above");
+        Ok(scaled(responses))
     }
 
     /// Solves the unit responses (see [`Body::probe_responses`]) of every
