@@ -53,7 +53,10 @@
 //! $J_\theta$), kept inside the bounds: where the score's local model holds,
 //! that is close to the refit's optimum (on the default campaign's last
 //! step the support compliance's refit started 340 times above the current
-//! misfit from its initial value). If that refit ends above the current
+//! misfit from its initial value). Its first Jacobian is the score test's:
+//! $J_\theta$ and $J_\psi$, taken one step away, with only the columns
+//! they lack (untested parameters, current ones not estimated) differenced;
+//! Broyden's updates follow (`fit::Precision::Candidate`). If that refit ends above the current
 //! $\chi^2$, it is fitted again from $(\hat\theta, \psi_\text{initial})$
 //! and then from $\hat\theta$ with $\psi$ next to its null; the likelihood ratio
 //! $\Lambda = \chi^2_\text{now} - \chi^2_\text{with}$ is compared with
@@ -69,7 +72,7 @@ use serde::{Deserialize, Serialize};
 use crate::chi2::chi2_upper_tail;
 use crate::effect::EffectParameter;
 use crate::error::DiagnoseError;
-use crate::fit::{Context, Fit, Fitted, Precision, chained_rows, fit_model};
+use crate::fit::{Context, Fit, Fitted, Precision, chained_rows, fit_model, fit_model_from};
 use crate::forward::Placements;
 use crate::model::{Model, PROBE_WIDTH};
 use crate::place::RANKING_NEAR_ROUNDS;
@@ -293,6 +296,8 @@ struct Score {
     /// The Gauss-Newton step from the current fit with the candidate at
     /// its null, kept inside the bounds: where its refit starts.
     one_step: Vec<f64>,
+    /// The tested parameters and their columns.
+    tested: Vec<(usize, Vec<f64>)>,
 }
 
 /// A candidate's tested parameters and the derivatives of the residuals
@@ -386,6 +391,7 @@ fn score_test(
     let base = &point.residuals;
     let m = base.len();
     let jp = DMatrix::from_fn(m, tested.len(), |i, j| derivatives[j][i]);
+    let tested_columns: Vec<(usize, Vec<f64>)> = tested.iter().copied().zip(derivatives).collect();
     let coefficients = &current.pseudo_inverse * &jp;
     let projected = &jp - &current.columns * &coefficients;
     let r = nalgebra::DVector::from_column_slice(base);
@@ -439,6 +445,7 @@ fn score_test(
         statistic,
         rank,
         one_step,
+        tested: tested_columns,
     })
 }
 
@@ -495,6 +502,7 @@ pub(crate) fn rank_candidates(
                     statistic: score,
                     rank: score_dof,
                     one_step,
+                    tested,
                 } = score_test(&point, &jacobian, fitted, &augmented, columns)?;
                 Ok(Scored {
                     candidate: Candidate {
@@ -512,6 +520,7 @@ pub(crate) fn rank_candidates(
                     spec,
                     augmented,
                     one_step,
+                    tested,
                 })
             },
         )
@@ -539,7 +548,11 @@ pub(crate) fn rank_candidates(
             held.push(s);
         }
     }
-    let mut out = refit_all(context, current, fitted, first)?;
+    let seed = Seed {
+        free: &point.free,
+        columns: &jacobian.columns,
+    };
+    let mut out = refit_all(context, current, fitted, &seed, first)?;
     let speculated = out.split_off(out.len() - as_scored.len());
     let bar = out
         .iter()
@@ -559,7 +572,7 @@ pub(crate) fn rank_candidates(
     let (worth, rest): (Vec<Scored>, Vec<Scored>) = held
         .into_iter()
         .partition(|s| worth_refitting(&s.candidate, bar));
-    out.extend(refit_all(context, current, fitted, worth)?);
+    out.extend(refit_all(context, current, fitted, &seed, worth)?);
     out.extend(rest.into_iter().map(|s| Ranked {
         candidate: s.candidate,
         spec: s.spec,
@@ -587,6 +600,37 @@ struct Scored {
     augmented: Model,
     /// Where its refit starts (see [`Score::one_step`]).
     one_step: Vec<f64>,
+    /// Its tested parameters' columns (see [`Score::tested`]).
+    tested: Vec<(usize, Vec<f64>)>,
+}
+
+/// The current fit's Jacobian, which starts each refit's: its columns for
+/// the current model's free parameters `free`.
+struct Seed<'a> {
+    free: &'a [usize],
+    columns: &'a DMatrix<f64>,
+}
+
+impl Seed<'_> {
+    /// One entry per parameter of `augmented`: the current fit's column of
+    /// each current free parameter, the score test's of each tested one,
+    /// none for the rest.
+    fn columns<'a>(
+        &'a self,
+        augmented: &Model,
+        tested: &'a [(usize, Vec<f64>)],
+    ) -> Vec<Option<&'a [f64]>> {
+        let mut columns = vec![None; augmented.len()];
+        // Column-major: column j is the j-th run of `nrows` values.
+        let runs = self.columns.as_slice().chunks(self.columns.nrows().max(1));
+        for (&k, column) in self.free.iter().zip(runs) {
+            columns[k] = Some(column);
+        }
+        for (k, column) in tested {
+            columns[*k] = Some(column.as_slice());
+        }
+        columns
+    }
 }
 
 /// The candidate's parameters next to their null: stepped $10^{-3}$ of
@@ -616,6 +660,7 @@ fn refit_all(
     context: &Context,
     current: &Model,
     fitted: &Fitted,
+    seed: &Seed<'_>,
     scored: Vec<Scored>,
 ) -> Result<Vec<Ranked>, DiagnoseError> {
     let n = context.measured.len() as f64;
@@ -627,6 +672,7 @@ fn refit_all(
                 spec,
                 augmented,
                 one_step,
+                tested,
             } = s;
             // The probe's contact width is the apparatus, not physics an
             // effect could explain: it stays at the current fit's value.
@@ -636,7 +682,17 @@ fn refit_all(
             // current fit, from the effect's initial values (some start
             // away from their null, `out_of_plane` at the full slab) and
             // from next to its null, which cannot end much above it.
-            let mut with = fit_model(context, &augmented, &one_step, &hold, Precision::Candidate)?;
+            // Its first Jacobian is the current fit's with the tested
+            // columns beside it, taken one step away.
+            let columns = seed.columns(&augmented, &tested);
+            let mut with = fit_model_from(
+                context,
+                &augmented,
+                &one_step,
+                &hold,
+                Precision::Candidate,
+                &columns,
+            )?;
             for start in [
                 fitted.params.clone(),
                 near_null_start(&augmented, &fitted.params),

@@ -36,6 +36,15 @@
 //! parallel over parameters (see [`Differences`]). Details on
 //! [`LevenbergMarquardt`].
 //!
+//! Where a differenced Jacobian is costly (each column a finite-element
+//! solve), it may instead be updated after a well-predicted step by
+//! Broyden's rank-one formula `J ← J + (Δr - J δ) δᵀ / (δᵀ δ)`
+//! ([`JacobianUpdates`]), and the first one may be given, column by
+//! column, from an earlier fit nearby
+//! ([`LevenbergMarquardt::minimize_with_columns`]). Either kind of
+//! approximate Jacobian is replaced by a new one after a step it predicts
+//! badly; the fit stops on one only when asked to.
+//!
 //! ## Bounds by transformation
 //!
 //! A bounded parameter is `p = lo + (hi - lo)(1 + sin u)/2` (two-sided) or
@@ -115,7 +124,7 @@ mod uncertainty;
 
 pub use differentiate::{Differences, finite_difference_jacobian};
 pub use error::{EvaluationError, LsqError};
-pub use minimize::{LevenbergMarquardt, Options};
+pub use minimize::{JacobianUpdates, LevenbergMarquardt, Options};
 pub use parameter::Parameter;
 pub use problem::Problem;
 pub use profile::{Profile, ProfileOptions, ProfileSpan};

@@ -54,6 +54,29 @@ pub struct Options {
     /// For fits whose optimum alone is wanted. Absent from a file, on.
     #[serde(default = "uncertainty_by_default")]
     pub uncertainty: bool,
+    /// Whether the Jacobian is differenced afresh after every accepted
+    /// step or updated from the step's residuals. Absent from a file,
+    /// afresh.
+    #[serde(default)]
+    pub jacobian_updates: JacobianUpdates,
+}
+
+/// How the Jacobian follows the iteration (see [`LevenbergMarquardt`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum JacobianUpdates {
+    /// A new Jacobian after every accepted step.
+    #[default]
+    Never,
+    /// Broyden's rank-one update after an accepted step whose reduction the
+    /// Jacobian predicted well; a new one after a step it predicted badly
+    /// and before the fit stops, so the fit ends as it would with new
+    /// Jacobians throughout. For Jacobians that cost many evaluations.
+    Broyden,
+    /// As `Broyden`, but the fit may stop on an updated Jacobian (with a
+    /// new one at the optimum only when [`Options::uncertainty`] asks for
+    /// the covariance): its optimum is then only as close as the update's
+    /// gradient says. For fits whose misfit may err on the high side.
+    BroydenStopOnUpdate,
 }
 
 impl Default for Options {
@@ -69,6 +92,7 @@ impl Default for Options {
             rank_tolerance: 1e-7,
             bound_tolerance: 1e-6,
             uncertainty: true,
+            jacobian_updates: JacobianUpdates::Never,
         }
     }
 }
@@ -131,6 +155,14 @@ impl Options {
 /// of actual to predicted reduction: shrunk (by 0.1 to 0.5) when `ρ < 1/4`,
 /// doubled when `ρ > 3/4`; the step is accepted when `ρ >= 1e-4`. A trial
 /// point where the residuals fail or are not finite counts as `ρ = -∞`.
+///
+/// With [`JacobianUpdates::Broyden`], an accepted step `δ` with `ρ >= 1/4`
+/// updates the Jacobian by Broyden's rank-one formula
+/// `J ← J + (Δr - J δ) δᵀ / (δᵀ δ)`, `Δr` the change of the residuals
+/// (Dennis & Schnabel, *Numerical Methods for Unconstrained Optimization*,
+/// §8.1), instead of differencing it again. A step with `ρ < 1/4` on an
+/// updated Jacobian leaves the radius alone (the Jacobian, not the radius,
+/// is suspect) and the next Jacobian is new; so is the one before any stop.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct LevenbergMarquardt {
     /// Its options.
@@ -207,10 +239,52 @@ impl Coordinates {
 
 /// The Jacobian factored at one point: `J = Q R` and `Qᵀ r`.
 struct Factored {
+    /// `J` in the internal coordinates.
+    jacobian: DMatrix<f64>,
+    /// Whether `J` was evaluated here rather than updated.
+    fresh: bool,
     r_factor: DMatrix<f64>,
     q_t_residual: DVector<f64>,
     gradient: DVector<f64>,
     column_norms: Vec<f64>,
+}
+
+impl Factored {
+    /// `jacobian` (internal coordinates) factored with the residuals `r`.
+    fn new(jacobian: DMatrix<f64>, r: &[f64], fresh: bool) -> Self {
+        let residual = DVector::from_column_slice(r);
+        let gradient = jacobian.tr_mul(&residual);
+        let column_norms = jacobian.column_iter().map(|c| c.norm()).collect();
+        let rows = jacobian.nrows().min(jacobian.ncols());
+        let qr = jacobian.clone().qr();
+        let mut rotated = residual;
+        qr.q_tr_mul(&mut rotated);
+        Self {
+            jacobian,
+            fresh,
+            r_factor: qr.r(),
+            q_t_residual: rotated.rows(0, rows).into_owned(),
+            gradient,
+            column_norms,
+        }
+    }
+
+    /// Broyden's update after the step `step` changed the residuals from
+    /// `before` to `after`, factored with `after`.
+    fn updated(self, step: &DVector<f64>, before: &[f64], after: &[f64]) -> Self {
+        let mut jacobian = self.jacobian;
+        let predicted = &jacobian * step;
+        let change = DVector::from_iterator(
+            after.len(),
+            after
+                .iter()
+                .zip(before)
+                .zip(predicted.iter())
+                .map(|((a, b), p)| a - b - p),
+        );
+        jacobian.ger(1.0 / step.norm_squared(), &change, step, 1.0);
+        Self::new(jacobian, after, false)
+    }
 }
 
 impl LevenbergMarquardt {
@@ -224,6 +298,21 @@ impl LevenbergMarquardt {
         &self,
         problem: &P,
         parameters: &[Parameter],
+    ) -> Result<FitReport, LsqError> {
+        self.minimize_with_columns(problem, parameters, &[])
+    }
+
+    /// [`minimize`](Self::minimize) with the first Jacobian's columns taken
+    /// from `start_columns` where given: per parameter, $\partial r/\partial p_j$
+    /// at or near the initial point (from an earlier fit nearby), `None`
+    /// to difference it. An empty slice gives none. The given columns count
+    /// as an updated Jacobian (see [`JacobianUpdates`]): a step they predict
+    /// badly is followed by a new Jacobian.
+    pub fn minimize_with_columns<P: Problem + ?Sized>(
+        &self,
+        problem: &P,
+        parameters: &[Parameter],
+        start_columns: &[Option<&[f64]>],
     ) -> Result<FitReport, LsqError> {
         self.options.validate()?;
         if problem.num_parameters() != parameters.len() {
@@ -241,6 +330,32 @@ impl LevenbergMarquardt {
                 found: 0,
             });
         }
+        if !start_columns.is_empty() && start_columns.len() != parameters.len() {
+            return Err(LsqError::DimensionMismatch {
+                what: "start columns (one per parameter)",
+                expected: parameters.len(),
+                found: start_columns.len(),
+            });
+        }
+        for column in start_columns.iter().flatten() {
+            if column.len() != m {
+                return Err(LsqError::DimensionMismatch {
+                    what: "a start column (one value per residual)",
+                    expected: m,
+                    found: column.len(),
+                });
+            }
+            if column.iter().any(|v| !v.is_finite()) {
+                return Err(LsqError::InvalidOption {
+                    field: "start_columns",
+                    reason: "a start column has a value that is not finite".into(),
+                });
+            }
+        }
+        let seeded = coordinates
+            .columns
+            .iter()
+            .any(|c| start_columns.get(c.index).is_some_and(Option::is_some));
         let k = coordinates.free.len();
         let options = &self.options;
 
@@ -268,9 +383,23 @@ impl LevenbergMarquardt {
         let mut trial_r = vec![0.0; m];
 
         // `factored` is the Jacobian at the optimum unless `false` here.
+        let updates = options.jacobian_updates;
+        let mut carried: Option<Factored> = None;
         let (termination, factored, at_optimum) = 'outer: loop {
-            let factored = self.factor(problem, &coordinates, &u, &p, &r, &mut evaluations)?;
+            let factored = match carried.take() {
+                Some(updated) => updated,
+                None if seeded && iterations == 0 => self.seeded(
+                    problem,
+                    &coordinates,
+                    (&u, &p, &r),
+                    start_columns,
+                    &mut evaluations,
+                )?,
+                None => self.factor(problem, &coordinates, &u, &p, &r, &mut evaluations)?,
+            };
             iterations += 1;
+            // A stop judged on an updated Jacobian is confirmed on a new one.
+            let confirm = !factored.fresh && updates != JacobianUpdates::BroydenStopOnUpdate;
             if cost == 0.0 {
                 break (Termination::ZeroCost, factored, true);
             }
@@ -298,12 +427,24 @@ impl LevenbergMarquardt {
                 .map(|(g, norm)| g.abs() / (norm * residual_norm))
                 .fold(0.0, f64::max);
             if scaled_gradient <= options.gradient_tolerance {
-                break (Termination::Gradient, factored, true);
+                if confirm {
+                    continue 'outer;
+                }
+                if factored.fresh {
+                    break (Termination::Gradient, factored, true);
+                }
+                if options.uncertainty {
+                    let factored =
+                        self.factor(problem, &coordinates, &u, &p, &r, &mut evaluations)?;
+                    break (Termination::Gradient, factored, true);
+                }
+                break (Termination::Gradient, factored, false);
             }
 
-            loop {
+            // The accepted step and the residuals before it, when the next
+            // Jacobian is to be updated rather than evaluated.
+            let update = loop {
                 let (chosen, step) = trust_region_step(&factored, &scaling, radius, lambda);
-                lambda = chosen;
                 let scaled_step = scaling.component_mul(&step).norm();
                 if iterations == 1 {
                     radius = radius.min(scaled_step);
@@ -325,7 +466,7 @@ impl LevenbergMarquardt {
                     -1.0
                 };
                 let linear = (&factored.r_factor * &step).norm_squared() / (2.0 * cost);
-                let damping_term = lambda * scaled_step * scaled_step / (2.0 * cost);
+                let damping_term = chosen * scaled_step * scaled_step / (2.0 * cost);
                 let predicted = linear + 2.0 * damping_term;
                 let directional = -(linear + damping_term);
                 let ratio = if predicted > 0.0 {
@@ -333,22 +474,26 @@ impl LevenbergMarquardt {
                 } else {
                     0.0
                 };
-                if ratio <= 0.25 {
-                    let mut shrink = if actual >= 0.0 {
-                        0.5
-                    } else {
-                        0.5 * directional / (directional + 0.5 * actual)
-                    };
-                    if !evaluated || trial_cost >= 100.0 * cost || shrink < 0.1 {
-                        shrink = 0.1;
-                    }
-                    radius = shrink * radius.min(scaled_step / 0.1);
-                    lambda /= shrink;
-                } else if lambda == 0.0 || ratio >= 0.75 {
-                    radius = 2.0 * scaled_step;
-                    lambda *= 0.5;
-                }
                 let accepted = ratio >= ACCEPT_RATIO;
+                let badly_predicted = !factored.fresh && ratio <= 0.25;
+                if !badly_predicted {
+                    lambda = chosen;
+                    if ratio <= 0.25 {
+                        let mut shrink = if actual >= 0.0 {
+                            0.5
+                        } else {
+                            0.5 * directional / (directional + 0.5 * actual)
+                        };
+                        if !evaluated || trial_cost >= 100.0 * cost || shrink < 0.1 {
+                            shrink = 0.1;
+                        }
+                        radius = shrink * radius.min(scaled_step / 0.1);
+                        lambda /= shrink;
+                    } else if lambda == 0.0 || ratio >= 0.75 {
+                        radius = 2.0 * scaled_step;
+                        lambda *= 0.5;
+                    }
+                }
                 if accepted {
                     u = trial_u;
                     p = trial_p;
@@ -356,7 +501,14 @@ impl LevenbergMarquardt {
                     cost = trial_cost;
                 }
                 let scaled_position = scaling.component_mul(&u).norm();
-                let stop = if cost == 0.0 {
+                let out_of_evaluations = evaluations.residuals >= options.max_evaluations;
+                let stop = if badly_predicted {
+                    if !out_of_evaluations {
+                        // A new Jacobian at the current point first.
+                        continue 'outer;
+                    }
+                    Some(Termination::MaxEvaluations)
+                } else if cost == 0.0 {
                     Some(Termination::ZeroCost)
                 } else if actual.abs() <= options.function_tolerance
                     && predicted <= options.function_tolerance
@@ -364,7 +516,7 @@ impl LevenbergMarquardt {
                     Some(Termination::CostReduction)
                 } else if radius <= options.step_tolerance * scaled_position {
                     Some(Termination::StepSize)
-                } else if evaluations.residuals >= options.max_evaluations {
+                } else if out_of_evaluations {
                     Some(Termination::MaxEvaluations)
                 } else if radius <= f64::EPSILON * scaled_position || radius <= f64::MIN_POSITIVE {
                     Some(Termination::DampingExhausted)
@@ -372,17 +524,28 @@ impl LevenbergMarquardt {
                     None
                 };
                 if let Some(termination) = stop {
-                    if accepted && options.uncertainty {
-                        let factored =
-                            self.factor(problem, &coordinates, &u, &p, &r, &mut evaluations)?;
-                        break 'outer (termination, factored, true);
+                    if confirm && termination != Termination::MaxEvaluations {
+                        if accepted {
+                            break None;
+                        }
+                        continue 'outer;
                     }
-                    break 'outer (termination, factored, !accepted);
+                    if accepted || !factored.fresh {
+                        if options.uncertainty {
+                            let factored =
+                                self.factor(problem, &coordinates, &u, &p, &r, &mut evaluations)?;
+                            break 'outer (termination, factored, true);
+                        }
+                        break 'outer (termination, factored, false);
+                    }
+                    break 'outer (termination, factored, true);
                 }
                 if accepted {
-                    break;
+                    break (updates != JacobianUpdates::Never).then_some(step);
                 }
-            }
+            };
+            // `trial_r` holds the residuals before the accepted step.
+            carried = update.map(|step| factored.updated(&step, &trial_r, &r));
         };
 
         let derivatives = coordinates.derivatives(&u);
@@ -425,6 +588,53 @@ impl LevenbergMarquardt {
             gradient_norm,
             uncertainty,
         })
+    }
+
+    /// The first Jacobian from the given columns, the others differenced
+    /// at `p`, factored as an updated one.
+    fn seeded<P: Problem + ?Sized>(
+        &self,
+        problem: &P,
+        coordinates: &Coordinates,
+        (u, p, r): (&DVector<f64>, &[f64], &[f64]),
+        start_columns: &[Option<&[f64]>],
+        evaluations: &mut Evaluations,
+    ) -> Result<Factored, LsqError> {
+        let given = |spec: &ColumnSpec| start_columns[spec.index];
+        let missing: Vec<ColumnSpec> = coordinates
+            .columns
+            .iter()
+            .filter(|spec| given(spec).is_none())
+            .copied()
+            .collect();
+        let mut differenced = DMatrix::zeros(r.len(), 0);
+        if !missing.is_empty() {
+            let (columns, spent) =
+                difference_columns(problem, p, r, &missing, self.options.differences).map_err(
+                    |source| LsqError::JacobianEvaluation {
+                        params: p.to_vec(),
+                        source,
+                    },
+                )?;
+            evaluations.jacobians += 1;
+            evaluations.finite_difference_residuals += spent;
+            differenced = columns;
+        }
+        let mut jacobian = DMatrix::zeros(r.len(), coordinates.columns.len());
+        let mut next = 0;
+        for (j, spec) in coordinates.columns.iter().enumerate() {
+            match given(spec) {
+                Some(column) => jacobian.column_mut(j).copy_from_slice(column),
+                None => {
+                    jacobian.set_column(j, &differenced.column(next));
+                    next += 1;
+                }
+            }
+        }
+        for (mut column, derivative) in jacobian.column_iter_mut().zip(coordinates.derivatives(u)) {
+            column *= derivative;
+        }
+        Ok(Factored::new(jacobian, r, false))
     }
 
     /// Evaluates the Jacobian at `p` (with respect to `u`) and factors it.
@@ -473,19 +683,7 @@ impl LevenbergMarquardt {
         for (mut column, derivative) in jacobian.column_iter_mut().zip(coordinates.derivatives(u)) {
             column *= derivative;
         }
-        let residual = DVector::from_column_slice(r);
-        let gradient = jacobian.tr_mul(&residual);
-        let column_norms = jacobian.column_iter().map(|c| c.norm()).collect();
-        let rows = m.min(coordinates.free.len());
-        let qr = jacobian.qr();
-        let mut rotated = residual;
-        qr.q_tr_mul(&mut rotated);
-        Ok(Factored {
-            r_factor: qr.r(),
-            q_t_residual: rotated.rows(0, rows).into_owned(),
-            gradient,
-            column_norms,
-        })
+        Ok(Factored::new(jacobian, r, true))
     }
 }
 

@@ -29,7 +29,7 @@
 //!
 //! A needle of radius $a > 0$ (`Needles::radius`, 3-D slab only) drags
 //! the tissue on its surface, not on its axis: $u(X)$ above is the mean
-//! displacement over the [`Rim`], points at angles
+//! displacement over the `Rim`, points at angles
 //! $\theta_k = (k + \tfrac12)\pi/n$ on the half circle of radius $a$
 //! around the axis in the upper half's x-z plane (the lower half mirrors
 //! them). The load stays on the axis: outside the needle an axial load

@@ -15,10 +15,17 @@
 //! iteration: the tangent is refactorised whenever the residual stops
 //! falling fast, and otherwise reused (modified Newton), which keeps the
 //! many nearly equal load steps of a trial cheap; where the tangent is not
-//! positive definite the stiffness at rest is used instead. A residual
-//! with NaN (an inverted element) is a typed non-convergence error. At small strains the
-//! tangent equals the linear stiffness, so the effect only shows at large
-//! strains.
+//! positive definite it is factorised as $L D L^T$, and where that fails
+//! the stiffness at rest is used instead. A solve that stalls (no step
+//! lowers the residual, or too many iterations) is retried along the load
+//! path from its start in increments halved until they converge
+//! (`NeoHookean::solve`). One that stalls even so is a typed
+//! non-convergence error naming how far along the load it got and where
+//! the phantom is most compressed: in a plane phantom that is typically a
+//! corner of the clamped face, whose strain is singular, compressed past
+//! the range where a neo-Hookean surface stays smooth
+//! (`docs/truth-world.md`). At small strains the tangent equals the linear
+//! stiffness, so the effect only shows at large strains.
 
 use std::sync::{Arc, Mutex};
 
@@ -92,8 +99,17 @@ pub(crate) struct NeoHookean {
 /// force in the problem.
 const RELATIVE_TOLERANCE: f64 = 1e-10;
 
-/// Maximum Newton iterations per solve.
-const MAX_ITERATIONS: usize = 200;
+/// Convergence of an intermediate state on the way to a load that Newton's
+/// method could not reach at once: only a start for the next.
+const INTERMEDIATE_TOLERANCE: f64 = 1e-6;
+
+/// Maximum Newton iterations per attempt; a solve that converges does so
+/// in at most 15 (the insertions of `docs/truth-world.md`'s soft phantom),
+/// one slower is stalling and is better split.
+const MAX_ITERATIONS: usize = 40;
+
+/// The smallest fraction of the load an increment may be cut to.
+const SMALLEST_INCREMENT: f64 = 1.0 / 4096.0;
 
 impl NeoHookean {
     /// The material `(E, nu)` per region, springs and held components.
@@ -269,6 +285,16 @@ impl NeoHookean {
 
     /// Solves $f_{int}(u) = f$ with held components at `prescribed` (zero
     /// when empty), starting from `start`.
+    ///
+    /// Newton's method from `start` goes straight for the whole load when
+    /// it can. Where it stalls (a concentrated load moved on by a step
+    /// strains a few elements far, and the tangent along the way turns
+    /// indefinite), the load is reached along the straight path
+    /// $f(\lambda) = (1 - \lambda) f_{int}(u_0) + \lambda f$, $u_0$ = `start`
+    /// (the held components likewise from their values in `start`), which
+    /// `start` satisfies exactly at $\lambda = 0$: the increment of
+    /// $\lambda$ is halved after a stall and doubled after a success, each
+    /// intermediate state solved to [`INTERMEDIATE_TOLERANCE`].
     pub fn solve(
         &self,
         body: &Body,
@@ -276,28 +302,124 @@ impl NeoHookean {
         start: &[f64],
         prescribed: &[f64],
     ) -> Result<Vec<f64>, SynthError> {
-        let mut u = start.to_vec();
+        let held_value = |dof: usize| prescribed.get(dof).copied().unwrap_or(0.0);
+        let mut guard = self.tangent.lock().expect("tangent lock");
+        // Only needed once the whole load has failed.
+        let mut at_start: Option<Vec<f64>> = None;
+        let mut reached = start.to_vec();
+        let mut done = 0.0;
+        let mut increment = 1.0f64;
+        loop {
+            let to = (done + increment).min(1.0);
+            let last = to == 1.0;
+            let target: Vec<f64> = match &at_start {
+                None => loads.to_vec(),
+                Some(base) => base
+                    .iter()
+                    .zip(loads)
+                    .map(|(b, f)| b + to * (f - b))
+                    .collect(),
+            };
+            let held: Vec<f64> = (0..start.len())
+                .map(|dof| start[dof] + to * (held_value(dof) - start[dof]))
+                .collect();
+            let tolerance = if last {
+                RELATIVE_TOLERANCE
+            } else {
+                INTERMEDIATE_TOLERANCE
+            };
+            match self.newton(body, &mut guard, &reached, &target, &held, tolerance) {
+                Ok(u) if last => return Ok(u),
+                Ok(u) => {
+                    reached = u;
+                    done = to;
+                    increment = (2.0 * increment).min(1.0 - done);
+                }
+                Err(stalled) => {
+                    increment *= 0.5;
+                    if increment < SMALLEST_INCREMENT {
+                        let (stretch, at) = self.most_compressed(body, &reached);
+                        return Err(SynthError::NoConvergence {
+                            what: format!(
+                                "the neo-Hookean phantom (stalled at {done:.4} of the load; \
+                                 most compressed at x = {:.2} mm, y = {:.2} mm, z = {:.2} mm, \
+                                 least principal stretch {stretch:.3})",
+                                1e3 * at[0],
+                                1e3 * at[1],
+                                1e3 * at[2],
+                            ),
+                            residual: stalled.residual,
+                            iterations: stalled.iterations,
+                        });
+                    }
+                    if at_start.is_none() {
+                        let base = self.internal_forces(body, start);
+                        if base.iter().any(|v| !v.is_finite()) {
+                            return Err(SynthError::NoConvergence {
+                                what: "the neo-Hookean phantom (inverted elements at the start)"
+                                    .into(),
+                                residual: stalled.residual,
+                                iterations: stalled.iterations,
+                            });
+                        }
+                        at_start = Some(base);
+                    }
+                    // The stored tangent belongs to the failed attempt.
+                    *guard = None;
+                }
+            }
+        }
+    }
+
+    /// The least principal stretch over every element's quadrature points
+    /// at `u`, and the centroid of its element (rest coordinates): where a
+    /// solve that stalls has gone furthest into compression.
+    pub(crate) fn most_compressed(&self, body: &Body, u: &[f64]) -> (f64, [f64; 3]) {
+        match body.dim {
+            2 => most_compressed_kind::<2, 6>(body, u),
+            _ => most_compressed_kind::<3, 10>(body, u),
+        }
+    }
+
+    /// Newton's method for $f_{int}(u) = f$ (`loads`) from `from`, with the
+    /// held components moved to `held`: converged when the largest residual
+    /// is below `tolerance` times the force scale, stalled when a step
+    /// halved ten times lowers no residual or after
+    /// [`MAX_ITERATIONS`] iterations.
+    fn newton(
+        &self,
+        body: &Body,
+        stored: &mut Option<Factorised>,
+        from: &[f64],
+        loads: &[f64],
+        held: &[f64],
+        tolerance: f64,
+    ) -> Result<Vec<f64>, Stalled> {
+        let mut u = from.to_vec();
         let jump: Vec<f64> = (0..u.len())
             .map(|dof| {
                 if self.held[dof] {
-                    prescribed.get(dof).copied().unwrap_or(0.0) - start[dof]
+                    held[dof] - from[dof]
                 } else {
                     0.0
                 }
             })
             .collect();
-        let mut guard = self.tangent.lock().expect("tangent lock");
         if jump.iter().any(|&j| j != 0.0) {
             // Carry the prescribed increment into the body with the tangent
             // at the start (a linear predictor): moving the held components
             // alone would shear the elements at their edge far into the
             // nonlinear range before the first iteration.
-            let (tangent, factorised) = self.factorise_at(body, start)?;
+            let stall = |_| Stalled {
+                residual: f64::INFINITY,
+                iterations: 0,
+            };
+            let (tangent, factorised) = self.factorise_at(body, from).map_err(stall)?;
             let predicted = factorised.solve_prescribed(&tangent, &jump);
             for (ui, di) in u.iter_mut().zip(&predicted) {
                 *ui += di;
             }
-            *guard = Some(factorised);
+            *stored = Some(factorised);
         }
         // The residual on the free components, and the force scale: the
         // largest external load or internal force (reactions included).
@@ -329,13 +451,20 @@ impl NeoHookean {
         };
         let (mut r, mut norm, mut scale) = residual(&u);
         for iteration in 0..MAX_ITERATIONS {
-            if norm <= RELATIVE_TOLERANCE * scale {
+            if norm <= tolerance * scale {
                 return Ok(u);
             }
-            if guard.is_none() {
-                *guard = Some(self.factorise_at(body, &u)?.1);
+            let stalled = Stalled {
+                residual: norm,
+                iterations: iteration,
+            };
+            if !norm.is_finite() {
+                return Err(stalled);
             }
-            let step = guard
+            if stored.is_none() {
+                *stored = Some(self.factorise_at(body, &u).map_err(|_| stalled)?.1);
+            }
+            let step = stored
                 .as_ref()
                 .expect("factorised above")
                 .solve(&[&r])
@@ -345,36 +474,75 @@ impl NeoHookean {
             let (next, next_r, next_norm, next_scale) = loop {
                 let trial: Vec<f64> = u.iter().zip(&step).map(|(a, b)| a + length * b).collect();
                 let (tr, tn, ts) = residual(&trial);
-                if tn.is_finite() && (tn < norm || length < 1e-3) {
+                if tn < norm {
                     break (trial, tr, tn, ts);
                 }
                 if length < 1e-3 {
-                    return Err(SynthError::NoConvergence {
-                        what: "the neo-Hookean phantom (inverted elements)".into(),
-                        residual: norm,
-                        iterations: iteration,
-                    });
+                    return Err(stalled);
                 }
                 length *= 0.5;
             };
             // A slowly falling residual means the stored tangent is stale.
             if next_norm > 0.1 * norm || iteration % 10 == 9 {
-                *guard = None;
+                *stored = None;
             }
             u = next;
             r = next_r;
             norm = next_norm;
             scale = next_scale;
         }
-        if norm <= RELATIVE_TOLERANCE * scale {
+        if norm <= tolerance * scale {
             return Ok(u);
         }
-        Err(SynthError::NoConvergence {
-            what: "the neo-Hookean phantom".into(),
+        Err(Stalled {
             residual: norm,
             iterations: MAX_ITERATIONS,
         })
     }
+}
+
+/// A Newton solve that stopped short: its last residual and iterations.
+#[derive(Debug, Clone, Copy)]
+struct Stalled {
+    residual: f64,
+    iterations: usize,
+}
+
+fn most_compressed_kind<const D: usize, const N: usize>(body: &Body, u: &[f64]) -> (f64, [f64; 3]) {
+    let reference = ReferenceGradients::<D, N>::for_degree(2);
+    let mut least = (f64::INFINITY, 0);
+    for e in 0..body.element_count() {
+        let nodes = body.element(e);
+        let coordinates = nalgebra::SMatrix::<f64, D, N>::from_fn(|i, a| body.nodes[nodes[a]][i]);
+        for (grad_ref, _) in &reference.points {
+            let (grad, _) = physical_gradients(&coordinates, grad_ref);
+            let mut f = nalgebra::DMatrix::<f64>::identity(D, D);
+            for a in 0..N {
+                for i in 0..D {
+                    for j in 0..D {
+                        f[(i, j)] += u[nodes[a] * D + i] * grad[(j, a)];
+                    }
+                }
+            }
+            // Principal stretches: square roots of the eigenvalues of F^T F.
+            let stretch = (f.transpose() * &f)
+                .symmetric_eigenvalues()
+                .min()
+                .max(0.0)
+                .sqrt();
+            if stretch < least.0 {
+                least = (stretch, e);
+            }
+        }
+    }
+    let nodes = body.element(least.1);
+    let mut centroid = [0.0; 3];
+    for &n in nodes {
+        for (c, x) in centroid.iter_mut().zip(body.nodes[n]) {
+            *c += x / nodes.len() as f64;
+        }
+    }
+    (least.0, centroid)
 }
 
 /// Inverse (row-major `inv[i][j]`) and determinant of a 3x3 matrix.
@@ -392,4 +560,139 @@ fn inverse_and_det(m: &[[f64; 3]; 3]) -> ([[f64; 3]; 3], f64) {
         }
     }
     (inv, det)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::effect::Effects;
+    use crate::scenario::Scenario;
+    use crate::world::World;
+
+    /// The quick scenario's plane phantom, coarse, neo-Hookean.
+    fn small_neo_hookean() -> Scenario {
+        let mut s = Scenario::quick();
+        s.phantom.markers = (6, 6);
+        s.resolution.refinement = 1;
+        s.effects = Effects::none();
+        s.effects.material_nonlinearity = Some(MaterialNonlinearity);
+        s
+    }
+
+    /// The node nearest the phantom's centre.
+    fn central_node(s: &Scenario, body: &Body) -> usize {
+        let centre = [s.phantom.width / 2.0, s.phantom.depth / 2.0];
+        let distance =
+            |n: usize| (body.nodes[n][0] - centre[0]).hypot(body.nodes[n][1] - centre[1]);
+        (0..body.nodes.len())
+            .min_by(|&a, &b| distance(a).total_cmp(&distance(b)))
+            .unwrap()
+    }
+
+    /// $u_y = -a y^2 / (2D)$ compresses along y by the stretch $1 - a y / D$,
+    /// least at the back face $y = D$.
+    #[test]
+    fn the_most_compressed_element_is_where_a_manufactured_field_compresses_most() {
+        let s = small_neo_hookean();
+        let world = World::new(&s).unwrap();
+        let body = &world.body;
+        let (a, depth) = (0.4, s.phantom.depth);
+        let mut u = vec![0.0; body.dof_count()];
+        for (n, x) in body.nodes.iter().enumerate() {
+            u[n * body.dim + 1] = -a * x[1] * x[1] / (2.0 * depth);
+        }
+        let solver = world.neo_hookean(1.0, &[]).unwrap();
+        let (stretch, at) = solver.most_compressed(body, &u);
+        let h = body.element_size;
+        assert!(
+            stretch > 1.0 - a && stretch < 1.0 - a * (depth - h) / depth,
+            "least stretch {stretch}"
+        );
+        assert!(depth - at[1] < h, "found at y = {} of {depth}", at[1]);
+    }
+
+    /// A load beyond what the phantom can carry is a typed error that says
+    /// how far along the load the solve got and where it is most
+    /// compressed.
+    #[test]
+    fn a_stalled_solve_names_where_the_phantom_is_most_compressed() {
+        let s = small_neo_hookean();
+        let world = World::new(&s).unwrap();
+        let body = &world.body;
+        let solver = world.neo_hookean(1.0, &[]).unwrap();
+        let mut loads = vec![0.0; body.dof_count()];
+        loads[central_node(&s, body) * body.dim + 1] = 25.6;
+        let rest = vec![0.0; body.dof_count()];
+        match solver.solve(body, &loads, &rest, &[]) {
+            Err(SynthError::NoConvergence { what, .. }) => {
+                assert!(
+                    what.contains("of the load") && what.contains("least principal stretch"),
+                    "{what}"
+                );
+                // Beside the loaded node, which is crushed against the
+                // clamped back face.
+                let millimetres = |key: &str| -> f64 {
+                    let rest = &what[what.find(key).unwrap() + key.len()..];
+                    rest[..rest.find(" mm").unwrap()].parse().unwrap()
+                };
+                let at = [millimetres("x = ") * 1e-3, millimetres("y = ") * 1e-3];
+                let node = body.nodes[central_node(&s, body)];
+                let distance = (at[0] - node[0]).hypot(at[1] - node[1]);
+                assert!(distance < body.element_size, "{what}");
+            }
+            other => panic!("expected a stall, got {:?}", other.map(|_| ())),
+        }
+    }
+
+    /// A point load of 10 N at the centre of the small neo-Hookean phantom
+    /// (75 x 75 mm, E = 25.3 kPa), towards the free front face: far beyond
+    /// any experiment (the point moves 67 mm), chosen because Newton's
+    /// method from rest stalls on it. `solve` must reach it along the load
+    /// path, to the solution that 16 equal load steps, each solved from
+    /// the last, arrive at.
+    #[test]
+    fn a_load_newton_cannot_reach_at_once_is_reached_along_its_path() {
+        let s = small_neo_hookean();
+        let world = World::new(&s).unwrap();
+        let body = &world.body;
+        let solver = world.neo_hookean(1.0, &[]).unwrap();
+        let node = central_node(&s, body);
+        let dofs = body.dof_count();
+        let mut loads = vec![0.0; dofs];
+        loads[node * body.dim + 1] = -10.0;
+        let rest = vec![0.0; dofs];
+
+        let direct = solver.newton(body, &mut None, &rest, &loads, &rest, RELATIVE_TOLERANCE);
+        assert!(
+            direct.is_err(),
+            "Newton's method from rest reached the load"
+        );
+
+        let u = solver.solve(body, &loads, &rest, &[]).unwrap();
+        let internal = solver.internal_forces(body, &u);
+        let residual = (0..dofs)
+            .filter(|&d| !world.fixed[d])
+            .map(|d| (internal[d] - loads[d]).abs())
+            .fold(0.0, f64::max);
+        assert!(residual < 1e-9, "residual {residual} N");
+
+        let steps = 16;
+        let mut stepped = rest.clone();
+        for k in 1..=steps {
+            let part: Vec<f64> = loads.iter().map(|f| f * k as f64 / steps as f64).collect();
+            stepped = solver
+                .newton(body, &mut None, &stepped, &part, &rest, RELATIVE_TOLERANCE)
+                .unwrap();
+        }
+        let largest = stepped.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let difference = u
+            .iter()
+            .zip(&stepped)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(
+            largest > 0.05 && difference < 1e-9 * largest,
+            "largest displacement {largest} m, the two paths differ by {difference} m"
+        );
+    }
 }
