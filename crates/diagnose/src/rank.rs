@@ -56,9 +56,11 @@
 //! misfit from its initial value). Its first Jacobian is the score test's:
 //! $J_\theta$ and $J_\psi$, taken one step away, with only the columns
 //! they lack (untested parameters, current ones not estimated) differenced;
-//! Broyden's updates follow (`fit::Precision::Candidate`). If that refit ends above the current
-//! $\chi^2$, it is fitted again from $(\hat\theta, \psi_\text{initial})$
-//! and then from $\hat\theta$ with $\psi$ next to its null; the likelihood ratio
+//! Broyden's updates follow (`fit::Precision::Candidate`). If that refit
+//! ends above the current $\chi^2$, it is fitted again from
+//! $(\hat\theta, \psi_\text{initial})$ and then from $\hat\theta$ with
+//! $\psi$ next to its null (each from a new Jacobian, as the start has
+//! moved); the likelihood ratio
 //! $\Lambda = \chi^2_\text{now} - \chi^2_\text{with}$ is compared with
 //! $\chi^2_{k'}$, $k'$ all the effect's parameters. AIC $= \chi^2 + 2 n_p$
 //! and BIC $= \chi^2 + n_p \ln n$ are reported too.
