@@ -320,8 +320,15 @@ impl NeoHookean {
                     .map(|(b, f)| b + to * (f - b))
                     .collect(),
             };
+            // The whole load holds the prescribed values exactly.
             let held: Vec<f64> = (0..start.len())
-                .map(|dof| start[dof] + to * (held_value(dof) - start[dof]))
+                .map(|dof| {
+                    if last {
+                        held_value(dof)
+                    } else {
+                        start[dof] + to * (held_value(dof) - start[dof])
+                    }
+                })
                 .collect();
             let tolerance = if last {
                 RELATIVE_TOLERANCE
