@@ -88,7 +88,9 @@ pub(crate) struct Fitted {
 
 /// How many evaluations a fit keeps: the Jacobian is taken at the point
 /// last accepted, which is the last or next-to-last evaluated, and the fit
-/// ends at it.
+/// ends at it or at the point of its last Jacobian (see
+/// [`Precision::Model`]), as a rule among the last three evaluated (else
+/// evaluated again).
 const KEPT_EVALUATIONS: usize = 3;
 
 /// One evaluation of the model proper: its parameters, its residuals
@@ -252,7 +254,14 @@ pub(crate) fn chained_rows(
 pub(crate) enum Precision {
     /// The fits that set the current model: relative tolerance (cost
     /// reduction, step, gradient) 1e-8, columns in [`NEAR_ROUNDS`] rounds,
-    /// whose derivatives are within 1% of the model's own differences.
+    /// whose derivatives are within 1% of the model's own differences. A
+    /// fit whose last step lowers $\chi^2$ by less than the tolerance ends
+    /// where that step started, at its last Jacobian
+    /// ([`needle_lsq::Options::end_at_last_jacobian`]): one Jacobian fewer
+    /// per fit, with $\chi^2$ within $10^{-8}$ of the step's end and the
+    /// parameters within $\sqrt{10^{-8}\chi^2}$ standard errors of it
+    /// (0.03 on the default campaign's last fit). That Jacobian gives
+    /// the covariance and the ranking's $J_\theta$ (`rank`).
     Model,
     /// A candidate's refit in the ranking: relative tolerance 1e-4 on the
     /// cost reduction, 1e-5 on the step and the gradient, and columns in
@@ -349,6 +358,7 @@ pub(crate) fn fit_model_from(
     engine.options.gradient_tolerance = tolerance;
     engine.options.max_evaluations = 300;
     engine.options.uncertainty = precision == Precision::Model;
+    engine.options.end_at_last_jacobian = precision == Precision::Model;
     engine.options.jacobian_updates = precision.jacobian_updates();
     let report = engine.minimize_with_columns(&problem, &parameters, start_columns)?;
     let params: Vec<f64> = report.params.iter().copied().collect();

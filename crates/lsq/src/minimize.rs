@@ -54,6 +54,21 @@ pub struct Options {
     /// For fits whose optimum alone is wanted. Absent from a file, on.
     #[serde(default = "uncertainty_by_default")]
     pub uncertainty: bool,
+    /// With `uncertainty` on, whether a stop for
+    /// [`Termination::CostReduction`] right after an accepted step ends at
+    /// the step's start, where the Jacobian (new, not
+    /// updated) was taken, rather than at its end with one more Jacobian
+    /// for the covariance. The step lowered the cost by at most
+    /// `function_tolerance` of it, so the start is an optimum to that
+    /// tolerance; its parameters differ from the end's by about
+    /// $\sqrt{\epsilon\chi^2}$ standard errors or less ($\epsilon$ the
+    /// tolerance; 0.03 for $10^{-8}$ and $\chi^2 = 84{,}000$), where a
+    /// Gauss-Newton step would have converged them further. For fits whose
+    /// Jacobian costs many evaluations; the report's
+    /// [`jacobian`](crate::FitReport::jacobian) is then the one at the
+    /// step's start. Absent from a file, off.
+    #[serde(default)]
+    pub end_at_last_jacobian: bool,
     /// Whether the Jacobian is differenced afresh after every accepted
     /// step or updated from the step's residuals. Absent from a file,
     /// afresh.
@@ -92,6 +107,7 @@ impl Default for Options {
             rank_tolerance: 1e-7,
             bound_tolerance: 1e-6,
             uncertainty: true,
+            end_at_last_jacobian: false,
             jacobian_updates: JacobianUpdates::Never,
         }
     }
@@ -494,8 +510,10 @@ impl LevenbergMarquardt {
                         lambda *= 0.5;
                     }
                 }
+                // Where the step started, which a negligible step returns to.
+                let mut before = None;
                 if accepted {
-                    u = trial_u;
+                    before = Some((std::mem::replace(&mut u, trial_u), cost));
                     p = trial_p;
                     std::mem::swap(&mut r, &mut trial_r);
                     cost = trial_cost;
@@ -531,6 +549,17 @@ impl LevenbergMarquardt {
                         continue 'outer;
                     }
                     if accepted || !factored.fresh {
+                        let at_last_jacobian = options.uncertainty
+                            && options.end_at_last_jacobian
+                            && factored.fresh
+                            && termination == Termination::CostReduction;
+                        if let (true, Some((start, start_cost))) = (at_last_jacobian, before) {
+                            u = start;
+                            p = coordinates.external(&u);
+                            std::mem::swap(&mut r, &mut trial_r);
+                            cost = start_cost;
+                            break 'outer (termination, factored, true);
+                        }
                         if options.uncertainty {
                             let factored =
                                 self.factor(problem, &coordinates, &u, &p, &r, &mut evaluations)?;
@@ -557,6 +586,11 @@ impl LevenbergMarquardt {
             .collect();
         let chi2 = 2.0 * cost;
         let dof = m.saturating_sub(k);
+        let jacobian = if at_optimum && factored.fresh {
+            external_columns(&factored.jacobian, &coordinates, &derivatives, &at_bound)
+        } else {
+            Vec::new()
+        };
         let (uncertainty, gradient_norm) = if at_optimum {
             let uncertainty = estimate(
                 &AtOptimum {
@@ -587,6 +621,7 @@ impl LevenbergMarquardt {
             termination,
             gradient_norm,
             uncertainty,
+            jacobian,
         })
     }
 
@@ -685,6 +720,26 @@ impl LevenbergMarquardt {
         }
         Ok(Factored::new(jacobian, r, true))
     }
+}
+
+/// The columns $\partial r/\partial p_j$ of `jacobian`, which is taken in
+/// the internal coordinates ($\partial r/\partial u_j = \partial r/\partial p_j
+/// \, dp_j/du_j$, `derivatives`), one per parameter: `None` for held ones
+/// and for free ones `at_bound`.
+fn external_columns(
+    jacobian: &DMatrix<f64>,
+    coordinates: &Coordinates,
+    derivatives: &[f64],
+    at_bound: &[bool],
+) -> Vec<Option<DVector<f64>>> {
+    let mut columns = vec![None; coordinates.held.len()];
+    for (position, &j) in coordinates.free.iter().enumerate() {
+        let derivative = derivatives[position];
+        if !at_bound[position] && derivative != 0.0 {
+            columns[j] = Some(jacobian.column(position) / derivative);
+        }
+    }
+    columns
 }
 
 /// Solves `min |[R; sqrt(λ) D] δ + [Qᵀ r; 0]|` by a second, small QR;

@@ -75,6 +75,16 @@ pub struct FitReport {
     pub gradient_norm: f64,
     /// Covariance, standard errors, identifiability.
     pub uncertainty: Uncertainty,
+    /// The Jacobian $\partial r_i/\partial p_j$ the covariance comes from,
+    /// evaluated (not updated) at `params`, one column per parameter:
+    /// `None` for a held parameter and for one on a bound, where the
+    /// internal coordinate has no slope to divide by. Empty when the fit
+    /// did not end with such a Jacobian (no covariance asked for, or a
+    /// stop on an updated one). Another fit from `params` can start from
+    /// it ([`LevenbergMarquardt::minimize_with_columns`](crate::LevenbergMarquardt::minimize_with_columns)).
+    /// Not serialised: it has one row per residual.
+    #[serde(skip)]
+    pub jacobian: Vec<Option<DVector<f64>>>,
 }
 
 impl FitReport {
