@@ -43,12 +43,15 @@
 //! column, from an earlier fit nearby
 //! ([`LevenbergMarquardt::minimize_with_columns`]). Either kind of
 //! approximate Jacobian is replaced by a new one after a step it predicts
-//! badly; the fit stops on one only when asked to. The report carries the
-//! Jacobian the covariance came from ([`FitReport::jacobian`]), for later
-//! work at the same point; a fit whose last step gains less than its cost
-//! tolerance may end at that step's start, where its last Jacobian was
-//! taken, instead of taking one more
-//! ([`Options::end_at_last_jacobian`]).
+//! badly; the fit stops on one only when asked to, and then also after a
+//! step whose predicted and actual reductions are both below the cost
+//! tolerance, however poor their ratio (at that size, rounding).
+//!
+//! The report carries the Jacobian the covariance came from
+//! ([`FitReport::jacobian`]), for later work at the same point; a fit
+//! whose last step gains less than its cost tolerance may end at that
+//! step's start, where its last Jacobian was taken, instead of taking one
+//! more ([`Options::end_at_last_jacobian`]).
 //!
 //! ## Bounds by transformation
 //!

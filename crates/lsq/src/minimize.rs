@@ -90,7 +90,10 @@ pub enum JacobianUpdates {
     /// As `Broyden`, but the fit may stop on an updated Jacobian (with a
     /// new one at the optimum only when [`Options::uncertainty`] asks for
     /// the covariance): its optimum is then only as close as the update's
-    /// gradient says. For fits whose misfit may err on the high side.
+    /// gradient says. A step whose actual and predicted reductions are both
+    /// below `function_tolerance` stops the fit even when their ratio is
+    /// poor, which at that size is rounding, not a wrong Jacobian. For fits
+    /// whose misfit may err on the high side.
     BroydenStopOnUpdate,
 }
 
@@ -520,17 +523,23 @@ impl LevenbergMarquardt {
                 }
                 let scaled_position = scaling.component_mul(&u).norm();
                 let out_of_evaluations = evaluations.residuals >= options.max_evaluations;
+                let negligible = actual.abs() <= options.function_tolerance
+                    && predicted <= options.function_tolerance;
                 let stop = if badly_predicted {
-                    if !out_of_evaluations {
+                    if negligible && updates == JacobianUpdates::BroydenStopOnUpdate {
+                        // At reductions below the tolerance the ratio is
+                        // rounding; the updated Jacobian sees no more to
+                        // gain, which is all this mode asks.
+                        Some(Termination::CostReduction)
+                    } else if !out_of_evaluations {
                         // A new Jacobian at the current point first.
                         continue 'outer;
+                    } else {
+                        Some(Termination::MaxEvaluations)
                     }
-                    Some(Termination::MaxEvaluations)
                 } else if cost == 0.0 {
                     Some(Termination::ZeroCost)
-                } else if actual.abs() <= options.function_tolerance
-                    && predicted <= options.function_tolerance
-                {
+                } else if negligible {
                     Some(Termination::CostReduction)
                 } else if radius <= options.step_tolerance * scaled_position {
                     Some(Termination::StepSize)

@@ -196,3 +196,54 @@ fn given_columns_of_the_wrong_shape_or_not_finite_are_refused() {
     let not_finite = attempt(&[None, None, Some(&nan)]);
     assert!(not_finite.contains("not finite"), "{not_finite}");
 }
+
+/// At the minimum with its Jacobian slightly off, the first step gains
+/// nothing and its ratio is rounding: with `BroydenStopOnUpdate` the fit
+/// stops there, since both reductions are below the tolerance, rather than
+/// differencing a new Jacobian; `Broyden` confirms the stop on a new one.
+#[test]
+fn a_negligible_step_on_given_columns_ends_a_fit_that_may_stop_on_them() {
+    let problem = mgh::BARD.numerical();
+    let optimum = fit(&problem, JacobianUpdates::Never);
+    let columns: Vec<Vec<f64>> = optimum
+        .jacobian
+        .iter()
+        .enumerate()
+        .map(|(j, column)| {
+            let column = column.as_ref().expect("an interior optimum");
+            let off = if j == 0 { 1.0 + 1e-3 } else { 1.0 };
+            column.iter().map(|v| v * off).collect()
+        })
+        .collect();
+    let given: Vec<Option<&[f64]>> = columns.iter().map(|c| Some(c.as_slice())).collect();
+    let parameters: Vec<needle_lsq::Parameter> = problem
+        .parameters()
+        .into_iter()
+        .zip(optimum.params.iter())
+        .map(|(p, &x)| needle_lsq::Parameter { initial: x, ..p })
+        .collect();
+    let from_the_optimum = |updates| {
+        LevenbergMarquardt::new(Options {
+            jacobian_updates: updates,
+            function_tolerance: 1e-4,
+            uncertainty: false,
+            ..Options::default()
+        })
+        .minimize_with_columns(&problem, &parameters, &given)
+        .unwrap()
+    };
+    let stopped = from_the_optimum(JacobianUpdates::BroydenStopOnUpdate);
+    assert_eq!(stopped.termination, needle_lsq::Termination::CostReduction);
+    assert_eq!(
+        stopped.evaluations.jacobians, 0,
+        "{:?}",
+        stopped.evaluations
+    );
+    assert!(stopped.chi2 <= optimum.chi2 * (1.0 + 1e-4));
+    let confirmed = from_the_optimum(JacobianUpdates::Broyden);
+    assert!(
+        confirmed.evaluations.jacobians >= 1,
+        "{:?}",
+        confirmed.evaluations
+    );
+}
