@@ -56,9 +56,9 @@ pub struct Options {
     pub uncertainty: bool,
     /// With `uncertainty` on, whether a stop for
     /// [`Termination::CostReduction`] right after an accepted step ends at
-    /// the step's start, where the Jacobian (new, not
-    /// updated) was taken, rather than at its end with one more Jacobian
-    /// for the covariance. The step lowered the cost by at most
+    /// the step's start, where the Jacobian (new, not updated) was taken,
+    /// rather than at its end with one more Jacobian for the covariance.
+    /// The step lowered the cost by at most
     /// `function_tolerance` of it, so the start is an optimum to that
     /// tolerance; its parameters differ from the end's by about
     /// $\sqrt{\epsilon\chi^2}$ standard errors or less ($\epsilon$ the
