@@ -757,29 +757,23 @@ mod tests {
     use crate::model::test_model;
     use crate::whiten::Whitening;
 
-    #[test]
-    fn the_score_test_s_step_explains_most_of_an_effect_linear_in_its_parameter() {
-        // Data made by the model itself with a tip peak (at a given shaft
-        // density the load is linear in its excess length): from the
-        // baseline's fit, one Gauss-Newton step of the excess, with the
-        // baseline's parameters re-adjusting, must remove nearly all the
-        // misfit the missing peak leaves.
-        let (obs, forward, start) = paper_forward_of(observations_of(&[
-            ("probe", TrialKind::Probe, 2.0, 0.0),
-            ("shallow", TrialKind::Needle, 3.0, 0.03),
-            ("deep", TrialKind::Needle, 3.0, 0.05),
-        ]));
-        let geometry = &forward.geometry.clone();
-        let truth = Model::new(
-            &ModelSpec::from_ids(&["tip_cutting_force"]).unwrap(),
-            geometry,
-            start,
-        )
-        .unwrap();
+    /// The weights and data of `trials` as the model makes them with
+    /// `effect`'s first parameter at `value` (the rest at their initial
+    /// values), without noise; and models of the paper's phantom with
+    /// the effects given.
+    fn made_by_the_model(
+        trials: &[(&str, TrialKind, f64, f64)],
+        effect: &str,
+        value: f64,
+    ) -> (Context, impl Fn(&[&str]) -> Model) {
+        let (obs, forward, start) = paper_forward_of(observations_of(trials));
+        let geometry = forward.geometry;
+        let model = move |ids: &[&str]| {
+            Model::new(&ModelSpec::from_ids(ids).unwrap(), &geometry, start).unwrap()
+        };
+        let truth = model(&[effect]);
         let mut p_true: Vec<f64> = truth.parameters.iter().map(|p| p.initial).collect();
-        // A peak 1.5 times the shaft density over the initial 5 mm width.
-        let excess = 1.5 * 0.005 / 2.0;
-        p_true[crate::model::BASELINE_PARAMETERS] = excess;
+        p_true[crate::model::BASELINE_PARAMETERS] = value;
         let measured = forward.predict(&truth, &p_true, &obs).unwrap().values;
         let context = Context {
             whitening: Whitening::independent(obs.marker_count(), 1e-6, &obs.row_sigmas(), 1e-4),
@@ -787,7 +781,26 @@ mod tests {
             obs,
             measured,
         };
-        let baseline = Model::new(&ModelSpec::baseline(), geometry, start).unwrap();
+        (context, model)
+    }
+
+    #[test]
+    fn the_score_test_s_step_explains_most_of_an_effect_linear_in_its_parameter() {
+        // Data made by the model itself with a tip peak (at a given shaft
+        // density the load is linear in its excess length): from the
+        // baseline's fit, one Gauss-Newton step of the excess, with the
+        // baseline's parameters re-adjusting, must remove nearly all the
+        // misfit the missing peak leaves.
+        // A peak 1.5 times the shaft density over the initial 5 mm width.
+        let excess = 1.5 * 0.005 / 2.0;
+        let trials = [
+            ("probe", TrialKind::Probe, 2.0, 0.0),
+            ("shallow", TrialKind::Needle, 3.0, 0.03),
+            ("deep", TrialKind::Needle, 3.0, 0.05),
+        ];
+        let (context, model) = made_by_the_model(&trials, "tip_cutting_force", excess);
+        let truth = model(&["tip_cutting_force"]);
+        let baseline = model(&[]);
         let fitted = fit_model(&context, &baseline, &[], &[], Precision::Model).unwrap();
         assert!(fitted.chi2 > 100.0, "the effect is seen: {}", fitted.chi2);
         let point = CurrentPoint::new(&context, &baseline, &fitted).unwrap();
@@ -825,25 +838,13 @@ mod tests {
         // candidates' scores taken with them. A weak candidate's score is
         // the most sensitive: here 181.3 with the model's columns, 183.7
         // with the fit's, 170.6 with the ranking's.
-        let (obs, forward, start) = paper_forward_of(observations_of(&[
+        let trials = [
             ("probe", TrialKind::Probe, 2.0, 0.0),
             ("early", TrialKind::Needle, 1.0, 0.04),
             ("late", TrialKind::Needle, 5.0, 0.05),
-        ]));
-        let geometry = &forward.geometry.clone();
-        let with =
-            |id: &str| Model::new(&ModelSpec::from_ids(&[id]).unwrap(), geometry, start).unwrap();
-        let truth = with("material_stiffening");
-        let mut p_true: Vec<f64> = truth.parameters.iter().map(|p| p.initial).collect();
-        p_true[crate::model::BASELINE_PARAMETERS] = 0.01;
-        let measured = forward.predict(&truth, &p_true, &obs).unwrap().values;
-        let context = Context {
-            whitening: Whitening::independent(obs.marker_count(), 1e-6, &obs.row_sigmas(), 1e-4),
-            forward,
-            obs,
-            measured,
-        };
-        let baseline = Model::new(&ModelSpec::baseline(), geometry, start).unwrap();
+        ];
+        let (context, model) = made_by_the_model(&trials, "material_stiffening", 0.01);
+        let baseline = model(&[]);
         let mut fitted = fit_model(&context, &baseline, &[], &[], Precision::Model).unwrap();
         let point = CurrentPoint::new(&context, &baseline, &fitted).unwrap();
         assert!(
@@ -883,7 +884,7 @@ mod tests {
             "tip_cutting_force",
             "layered_stiffness",
         ] {
-            let augmented = with(id);
+            let augmented = model(&[id]);
             let score = |current: &CurrentColumns| {
                 let columns = tested_columns(&context, &point, &fitted, &augmented).unwrap();
                 score_test(&point, current, &fitted, &augmented, columns)
