@@ -356,9 +356,13 @@ impl<const D: usize> Body<D> {
             {
                 Some((_, template)) => copy(template),
                 None => {
+                    // Copied before it is kept, not kept as a copy: one
+                    // copy of a problem as large as the whole slab's
+                    // instead of two.
                     let template = self.unit_springs(compliant, founded)?;
-                    templates.push(([compliant, founded], template.clone()));
-                    copy(&template)
+                    let problem = copy(&template);
+                    templates.push(([compliant, founded], template));
+                    problem
                 }
             }
         };

@@ -159,6 +159,7 @@ pub mod analytic;
 pub mod assemble;
 pub mod assemble_nonlinear;
 pub mod dirichlet;
+mod dissect;
 pub mod element;
 pub mod error;
 pub mod hyperelastic;

@@ -1,6 +1,6 @@
 //! The linear problem $K u = f$ with Dirichlet conditions and elastic
-//! supports, solved by sparse Cholesky ($K_{ff} = LL^T$, faer, with an AMD
-//! fill-reducing ordering).
+//! supports, solved by sparse Cholesky ($K_{ff} = LL^T$, faer, with a
+//! nested-dissection ordering along the mesh's planes, see `dissect`).
 //!
 //! [`LinearProblem`] keeps the assembled $K$, the reduced pattern of
 //! $K_{ff}$, its symbolic factorisation (computed once) and the numeric
@@ -25,13 +25,17 @@ use std::mem::MaybeUninit;
 use std::sync::Arc;
 
 use faer::dyn_stack::{MemStack, StackReq};
-use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholesky, factorize_symbolic_cholesky};
+use faer::perm::PermRef;
+use faer::sparse::linalg::cholesky::{
+    LltRef, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky,
+};
 use faer::sparse::{SparseColMat, SparseColMatRef, SymbolicSparseColMat};
 use faer::{Conj, MatMut, Side};
 use nalgebra::DMatrix;
 
 use crate::assemble::{Assembler, multiply};
 use crate::dirichlet::Dirichlet;
+use crate::dissect::dissection_order;
 use crate::error::FemError;
 use crate::material::Materials;
 use crate::mesh::Mesh;
@@ -299,10 +303,15 @@ impl<const D: usize> LinearProblem<D> {
         }
         let reduced_symbolic =
             SymbolicSparseColMat::new_checked(free.len(), free.len(), col_ptr, None, row_idx);
+        let order = dissection_order(mesh, &reduced_index);
+        let mut inverse = vec![0; order.len()];
+        for (position, &k) in order.iter().enumerate() {
+            inverse[k] = position;
+        }
         let symbolic = factorize_symbolic_cholesky(
             reduced_symbolic.as_ref(),
             Side::Lower,
-            Default::default(),
+            SymmetricOrdering::Custom(PermRef::new_checked(&order, &inverse, order.len())),
             Default::default(),
         )
         .map_err(|e| FemError::Factorization(format!("symbolic analysis: {e:?}")))?;
