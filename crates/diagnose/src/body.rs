@@ -348,24 +348,7 @@ impl<const D: usize> Body<D> {
         if !(compliant || founded) {
             return Ok(copy(&self.rigid));
         }
-        let mut problem = {
-            let mut templates = self.templates.lock().expect("template lock");
-            match templates
-                .iter()
-                .find(|(layout, _)| *layout == [compliant, founded])
-            {
-                Some((_, template)) => copy(template),
-                None => {
-                    // Copied before it is kept, not kept as a copy: one
-                    // copy of a problem as large as the whole slab's
-                    // instead of two.
-                    let template = self.unit_springs(compliant, founded)?;
-                    let problem = copy(&template);
-                    templates.push(([compliant, founded], template));
-                    problem
-                }
-            }
-        };
+        let mut problem = self.with_template([compliant, founded], copy)?;
         let mut index = 0;
         if compliant {
             for _ in &self.fixed_faces {
@@ -377,6 +360,39 @@ impl<const D: usize> Body<D> {
             problem.scale_support(index, supports.foundation)?;
         }
         Ok(problem)
+    }
+
+    /// Builds the template of the spring `layout` (compliant fixed faces,
+    /// foundation) if it is not there yet, ahead of its first use.
+    pub fn prepare_template(&self, layout: [bool; 2]) -> Result<(), DiagnoseError> {
+        self.with_template(layout, |_| ())
+    }
+
+    /// The spring layouts whose templates are built.
+    #[cfg(test)]
+    pub fn template_layouts(&self) -> Vec<[bool; 2]> {
+        let templates = self.templates.lock().expect("template lock");
+        templates.iter().map(|(layout, _)| *layout).collect()
+    }
+
+    /// `use_template` on the template of the spring `layout`, built first
+    /// if need be. A template being built holds the lock: a second caller
+    /// waits for it instead of building it again.
+    fn with_template<R>(
+        &self,
+        layout: [bool; 2],
+        use_template: impl FnOnce(&LinearProblem<D>) -> R,
+    ) -> Result<R, DiagnoseError> {
+        let mut templates = self.templates.lock().expect("template lock");
+        if let Some((_, template)) = templates.iter().find(|(kept, _)| *kept == layout) {
+            return Ok(use_template(template));
+        }
+        // Used before it is kept, not kept as a copy: one copy of a problem
+        // as large as the whole slab's instead of two.
+        let template = self.unit_springs(layout[0], layout[1])?;
+        let used = use_template(&template);
+        templates.push((layout, template));
+        Ok(used)
     }
 
     /// The problem with springs of unit stiffness per unit area on the

@@ -403,7 +403,13 @@ pub fn diagnose_campaign(
         // Candidates are refitted with the probe width held; the chosen
         // model is refitted with it free, since the width the previous
         // model fitted may have absorbed part of what the effect explains.
-        fitted = fit_model(&context, &current, &refit.params, &[], Precision::Model)?;
+        // The next ranking's foundation on the slab is made meanwhile.
+        let (fit, prepared) = rayon::join(
+            || fit_model(&context, &current, &refit.params, &[], Precision::Model),
+            || context.forward.prepare_foundation(&current, &refit.params),
+        );
+        fitted = fit?;
+        prepared?;
         // Noise taken from a fit's residuals is taken again from the better
         // model's: the last model's misfit inflated it, and would hide
         // from the channel what the next effect must still explain.

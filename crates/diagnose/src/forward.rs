@@ -485,6 +485,31 @@ impl Forward {
         Ok(body)
     }
 
+    /// Builds, ahead of need, what a foundation under the slab first costs
+    /// with `model` at `p`: the whole mirrored slab and its spring
+    /// template. Nothing if the model does not use the slab. A ranking
+    /// differences `platform_friction` on the whole slab, and on the
+    /// default campaign building them took 3 to 4 s of its critical path
+    /// (`docs/benchmarks.md`, session 32); a fit that runs meanwhile
+    /// leaves a core idle for part of its time.
+    pub fn prepare_foundation(&self, model: &Model, p: &[f64]) -> Result<(), DiagnoseError> {
+        let mut supports = SupportSpec::default();
+        let mut slab_weight = 0.0;
+        for (effect, own) in model.effects_with(p) {
+            effect.supports(own, &mut supports);
+            slab_weight += effect.slab_weight(own);
+        }
+        if slab_weight == 0.0 {
+            return Ok(());
+        }
+        let founded = SupportSpec {
+            foundation: 1.0,
+            ..supports
+        };
+        let whole = self.slab_for(founded)?;
+        whole.prepare_template([supports.fixed_face_compliance > 0.0, true])
+    }
+
     /// Element moduli of a trial on `body`.
     fn moduli<const D: usize>(
         body: &Body<D>,
@@ -1676,6 +1701,33 @@ pub(crate) mod tests {
             .map(|(a, b)| (a - b).abs())
             .fold(0.0, f64::max);
         assert!(gap < 1e-6 * effect, "gap {gap}, effect {effect}");
+    }
+
+    #[test]
+    fn a_foundation_prepared_ahead_predicts_as_one_made_at_first_use() {
+        let (obs, ahead, start) = paper_forward();
+        let (_, at_first_use, _) = paper_forward();
+        let plane_only = with_effect(&ahead, start, "platform_friction");
+        ahead
+            .prepare_foundation(&plane_only, &[25.0e3, 0.45, 10.0, 0.002, 0.0])
+            .unwrap();
+        assert!(ahead.whole_slab.lock().unwrap().is_none(), "no slab in use");
+        let model = with_effects(&ahead, start, &["out_of_plane", "platform_friction"]);
+        let p = [25.0e3, 0.45, 10.0, 0.002, 1.0, 0.0];
+        ahead.prepare_foundation(&model, &p).unwrap();
+        let whole = ahead.whole_slab.lock().unwrap().clone().unwrap();
+        assert_eq!(whole.template_layouts(), [[false, true]]);
+        let mut founded = p;
+        founded[5] = 10.0 * model.parameters[5].scale;
+        let predicted = ahead.predict(&model, &founded, &obs).unwrap().values;
+        let fresh = at_first_use.predict(&model, &founded, &obs).unwrap().values;
+        assert_eq!(predicted, fresh);
+        // Made once: the prediction used the body and template prepared.
+        assert!(Arc::ptr_eq(
+            &whole,
+            ahead.whole_slab.lock().unwrap().as_ref().unwrap()
+        ));
+        assert_eq!(whole.template_layouts(), [[false, true]]);
     }
 
     #[test]
