@@ -221,15 +221,25 @@ pub(crate) struct Placements {
     solutions: Vec<GroupSolutions>,
 }
 
+/// What the effects of `model` at `p` make of the bodies: their supports,
+/// the slab's weight and the neo-Hookean terms' weight.
+fn effects_on_bodies(model: &Model, p: &[f64]) -> (SupportSpec, f64, f64) {
+    let mut supports = SupportSpec::default();
+    let (mut slab_weight, mut nonlinear) = (0.0, 0.0);
+    for (effect, own) in model.effects_with(p) {
+        effect.supports(own, &mut supports);
+        slab_weight += effect.slab_weight(own);
+        nonlinear += effect.nonlinear_weight(own);
+    }
+    (supports, slab_weight, nonlinear)
+}
+
 impl Placements {
     /// Whether these solutions serve an evaluation of `model` at `p` whose
     /// parameters differ from theirs only in what acts after the solves
     /// ([`Model::solves_alike`]): they must hold the slab if `p` weighs it.
     pub fn serve(&self, model: &Model, p: &[f64]) -> bool {
-        let slab_weight: f64 = model
-            .effects_with(p)
-            .map(|(effect, own)| effect.slab_weight(own))
-            .sum();
+        let (_, slab_weight, _) = effects_on_bodies(model, p);
         slab_weight == 0.0 || self.solutions.iter().all(|g| g.slab.is_some())
     }
 }
@@ -493,12 +503,7 @@ impl Forward {
     /// (`docs/benchmarks.md`, session 32); a fit that runs meanwhile
     /// leaves a core idle for part of its time.
     pub fn prepare_foundation(&self, model: &Model, p: &[f64]) -> Result<(), DiagnoseError> {
-        let mut supports = SupportSpec::default();
-        let mut slab_weight = 0.0;
-        for (effect, own) in model.effects_with(p) {
-            effect.supports(own, &mut supports);
-            slab_weight += effect.slab_weight(own);
-        }
+        let (supports, slab_weight, _) = effects_on_bodies(model, p);
         if slab_weight == 0.0 {
             return Ok(());
         }
@@ -883,14 +888,7 @@ impl Forward {
             slab: vec![None; obs.frames.len()],
             solutions: Vec::new(),
         };
-        let mut supports = SupportSpec::default();
-        let mut slab_weight = 0.0;
-        let mut nonlinear = 0.0;
-        for (effect, own) in model.effects_with(p) {
-            effect.supports(own, &mut supports);
-            slab_weight += effect.slab_weight(own);
-            nonlinear += effect.nonlinear_weight(own);
-        }
+        let (supports, slab_weight, nonlinear) = effects_on_bodies(model, p);
         let plane_weight = 1.0 - slab_weight;
         let marker_count = obs.marker_count();
         let mut values = vec![0.0; marker_count + obs.force_count()];

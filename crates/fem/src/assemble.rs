@@ -126,13 +126,18 @@ impl StiffnessPattern {
             && s.row_idx() == self.symbolic.row_idx()
     }
 
+    /// The nodes that share an element with node `n`, itself included,
+    /// ascending.
+    pub fn neighbours(&self, n: usize) -> &[usize] {
+        &self.adjacency[self.offsets[n]..self.offsets[n + 1]]
+    }
+
     /// Position in the value array of the entry (row dof of node `row_node`
     /// component `r`, column dof of node `col_node` component `c`), or `None`
     /// if the nodes do not share an element.
     pub fn position(&self, row_node: usize, r: usize, col_node: usize, c: usize) -> Option<usize> {
         let d = self.dimension;
-        let neighbours = &self.adjacency[self.offsets[col_node]..self.offsets[col_node + 1]];
-        let k = neighbours.binary_search(&row_node).ok()?;
+        let k = self.neighbours(col_node).binary_search(&row_node).ok()?;
         Some(self.symbolic.col_ptr()[col_node * d + c] + k * d + r)
     }
 }

@@ -28,6 +28,7 @@
 //! permutation gives the same solution up to rounding; only fill and
 //! speed depend on it.
 
+use crate::assemble::StiffnessPattern;
 use crate::mesh::Mesh;
 
 /// Largest set of nodes that is not cut further. On the slabs, leaves of
@@ -40,16 +41,17 @@ const CUTS_EACH_SIDE: usize = 2;
 
 /// The free dofs of `mesh` in elimination order: `order[k]` is the
 /// reduced index (`reduced_index[dof]`, `usize::MAX` for a constrained
-/// dof) of the dof eliminated `k`-th. A node's dofs stay together.
+/// dof) of the dof eliminated `k`-th. A node's dofs stay together;
+/// `pattern` gives the nodes' neighbours.
 pub(crate) fn dissection_order<const D: usize>(
     mesh: &Mesh<D>,
+    pattern: &StiffnessPattern,
     reduced_index: &[usize],
 ) -> Vec<usize> {
-    let neighbours = neighbours(mesh);
     let mut nodes = Vec::with_capacity(mesh.node_count());
     let mut dissection = Dissection {
         coordinates: mesh.nodes(),
-        neighbours: &neighbours,
+        pattern,
         in_set: vec![0; mesh.node_count()],
         stamp: 0,
     };
@@ -61,25 +63,9 @@ pub(crate) fn dissection_order<const D: usize>(
         .collect()
 }
 
-/// The nodes that share an element with each node.
-fn neighbours<const D: usize>(mesh: &Mesh<D>) -> Vec<Vec<usize>> {
-    let mut neighbours = vec![Vec::new(); mesh.node_count()];
-    for e in 0..mesh.element_count() {
-        let element = mesh.element(e);
-        for &a in element {
-            neighbours[a].extend(element.iter().copied().filter(|&b| b != a));
-        }
-    }
-    for list in &mut neighbours {
-        list.sort_unstable();
-        list.dedup();
-    }
-    neighbours
-}
-
 struct Dissection<'a, const D: usize> {
     coordinates: &'a [[f64; D]],
-    neighbours: &'a [Vec<usize>],
+    pattern: &'a StiffnessPattern,
     /// `in_set[n] == stamp` marks the nodes of the set being cut.
     in_set: Vec<u64>,
     stamp: u64,
@@ -147,7 +133,9 @@ impl<const D: usize> Dissection<'_, D> {
     fn on_separator(&self, n: usize, axis: usize, plane: f64) -> bool {
         let x = self.coordinates[n][axis];
         x == plane
-            || self.neighbours[n]
+            || self
+                .pattern
+                .neighbours(n)
                 .iter()
                 .any(|&m| self.in_set[m] == self.stamp && self.coordinates[m][axis] > plane)
     }
@@ -208,7 +196,7 @@ mod tests {
                 free += 1;
             }
         }
-        let mut order = dissection_order(&mesh, &reduced_index);
+        let mut order = dissection_order(&mesh, &StiffnessPattern::new(&mesh), &reduced_index);
         assert_eq!(order.len(), free);
         order.sort_unstable();
         assert!(order.iter().enumerate().all(|(k, &r)| k == r));
@@ -221,10 +209,10 @@ mod tests {
             .build(ElementKind::Tri6)
             .unwrap();
         let reduced_index: Vec<usize> = (0..mesh.dof_count()).collect();
-        let neighbours = neighbours(&mesh);
+        let pattern = StiffnessPattern::new(&mesh);
         let dissection = Dissection {
             coordinates: mesh.nodes(),
-            neighbours: &neighbours,
+            pattern: &pattern,
             in_set: vec![1; mesh.node_count()],
             stamp: 1,
         };
@@ -236,10 +224,10 @@ mod tests {
         assert_eq!(cut.below.len(), cut.above.len());
         let above: std::collections::HashSet<usize> = cut.above.iter().copied().collect();
         for &n in &cut.below {
-            assert!(neighbours[n].iter().all(|m| !above.contains(m)));
+            assert!(pattern.neighbours(n).iter().all(|m| !above.contains(m)));
         }
         // The separator comes last in the whole order.
-        let order = dissection_order(&mesh, &reduced_index);
+        let order = dissection_order(&mesh, &pattern, &reduced_index);
         let tail: std::collections::HashSet<usize> = order[order.len() - 2 * 17..]
             .iter()
             .map(|&k| k / 2)

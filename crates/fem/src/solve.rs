@@ -303,7 +303,7 @@ impl<const D: usize> LinearProblem<D> {
         }
         let reduced_symbolic =
             SymbolicSparseColMat::new_checked(free.len(), free.len(), col_ptr, None, row_idx);
-        let order = dissection_order(mesh, &reduced_index);
+        let order = dissection_order(mesh, assembler.pattern(), &reduced_index);
         let mut inverse = vec![0; order.len()];
         for (position, &k) in order.iter().enumerate() {
             inverse[k] = position;
