@@ -58,7 +58,7 @@ proptest! {
         seed in any::<u64>(), e in 0usize..18, nu in -0.9f64..0.49, quadratic in any::<bool>()
     ) {
         let kind = if quadratic { ElementKind::Tri6 } else { ElementKind::Tri3 };
-        let mesh = distorted_square(kind, 3, 0.3, seed);
+        let mesh = distorted_square(kind, 3, 0.2, seed);
         let k = one_element_stiffness(&mesh, e, PLANE, Material::new(1e4, nu).unwrap());
         prop_assert!(symmetric_error(&k) < 1e-13);
         let (zero, smallest) = null_space(&k);
@@ -82,7 +82,7 @@ proptest! {
     #[test]
     fn patch_test_2d(seed in any::<u64>(), coefficients in prop::array::uniform6(-1.0f64..1.0), quadratic in any::<bool>()) {
         let kind = if quadratic { ElementKind::Tri6 } else { ElementKind::Tri3 };
-        let mesh = distorted_square(kind, 4, 0.3, seed);
+        let mesh = distorted_square(kind, 4, 0.2, seed);
         let affine = |p: [f64; 2]| {
             let c = &coefficients;
             [c[0] + c[1] * p[0] + c[2] * p[1], c[3] + c[4] * p[0] + c[5] * p[1]]
@@ -106,7 +106,7 @@ proptest! {
         seed in any::<u64>(), c in prop::array::uniform6(-1.0f64..1.0), points in prop::collection::vec((0.0f64..1.0, 0.0f64..1.0), 1..8)
     ) {
         for kind in [ElementKind::Tri3, ElementKind::Tri6] {
-            let mesh = distorted_square(kind, 3, 0.3, seed);
+            let mesh = distorted_square(kind, 3, 0.2, seed);
             let field = |p: [f64; 2]| {
                 let quadratic = if kind == ElementKind::Tri6 { c[3] * p[0] * p[0] + c[4] * p[0] * p[1] + c[5] * p[1] * p[1] } else { 0.0 };
                 [c[0] + c[1] * p[0] + c[2] * p[1] + quadratic, c[2] - c[0] * p[1] + quadratic]
@@ -693,8 +693,9 @@ fn a_factor_overwritten_in_place_solves_as_a_fresh_one_to_the_bit() {
     }
 }
 
-/// Many load cases solved as one block (split over the threads) give each
-/// case's own solve: the blocks never mix columns.
+/// Many load cases solved as one block give each case's own solve, split
+/// over the threads both from outside the pool and from one of its threads
+/// (blocks of at least 8 cases there): the blocks never mix columns.
 #[test]
 fn a_block_of_load_cases_equals_each_case_solved_alone() {
     let mesh = distorted_square(ElementKind::Tri6, 4, 0.2, 3);
@@ -714,13 +715,20 @@ fn a_block_of_load_cases_equals_each_case_solved_alone() {
         .collect();
     let refs: Vec<&[f64]> = cases.iter().map(|c| c.as_slice()).collect();
     let many = problem.displacements_many(&refs).unwrap();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .unwrap();
+    let in_pool = pool.install(|| problem.displacements_many(&refs)).unwrap();
     assert_eq!(many.len(), cases.len());
-    for (case, together) in cases.iter().zip(&many) {
+    assert_eq!(in_pool.len(), cases.len());
+    for ((case, together), from_pool) in cases.iter().zip(&many).zip(&in_pool) {
         let alone = problem.solve(case).unwrap().displacement;
         let scale = alone.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         assert!(scale > 0.0);
-        for (a, b) in alone.iter().zip(together) {
+        for ((a, b), c) in alone.iter().zip(together).zip(from_pool) {
             assert!((a - b).abs() <= 1e-12 * scale, "{a} vs {b}");
+            assert!((a - c).abs() <= 1e-12 * scale, "{a} vs {c} in the pool");
         }
     }
 }
@@ -870,7 +878,7 @@ proptest! {
     fn element_quality_is_scale_and_rotation_invariant_and_in_unit_interval(
         seed in 0u64..1000, scale in 0.001f64..1000.0, angle in 0.0f64..6.3,
     ) {
-        let mesh = distorted_square(ElementKind::Tri3, 3, 0.3, seed);
+        let mesh = distorted_square(ElementKind::Tri3, 3, 0.2, seed);
         let (c, s) = (angle.cos(), angle.sin());
         let moved: Vec<[f64; 2]> = mesh
             .nodes()
