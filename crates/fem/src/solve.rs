@@ -597,24 +597,35 @@ impl<const D: usize> LinearProblem<D> {
 /// make poor use of the blocked kernels. A judgement, not a tuned value.
 const MIN_COLUMNS_PER_THREAD: usize = 4;
 
-/// Solves $LL^T X = B$ in place. Called from outside the rayon pool (a
-/// fit's trial point, one factorisation's many loads), whose threads then
-/// have nothing else to do, the columns of `rhs` are split into one block
-/// per thread (at least [`MIN_COLUMNS_PER_THREAD`] each); the solve of one
-/// column never reads another, so the blocks are independent, and they get
-/// the other cores even where faer's own parallelism is off (the diagnosis
-/// turns it off: inside parallel fits it cost CPU time). Called from a
-/// thread of the pool (finite-difference columns, candidate refits), the
-/// caller is parallel already and the columns are solved as one block:
-/// each block is a pass over the whole factor, and wider blocks use the
-/// kernels better (the default diagnosis took about a fifth less CPU time
-/// than with blocks split on every call; `docs/benchmarks.md`, session 16).
+/// Fewest right-hand sides per block when the caller is itself a thread
+/// of the pool (see [`solve_split`]).
+const MIN_COLUMNS_PER_SHARED_BLOCK: usize = 8;
+
+/// Solves $LL^T X = B$ in place, the columns of `rhs` split into one
+/// block per thread; the solve of one column never reads another, so the
+/// blocks are independent, and they get the other cores even where faer's
+/// own parallelism is off (the diagnosis turns it off: inside parallel fits
+/// it cost CPU time). Called from outside the rayon pool (a fit's trial
+/// point, one factorisation's many loads), whose threads then have nothing
+/// else to do, a block may be as narrow as [`MIN_COLUMNS_PER_THREAD`].
+/// Called from a thread of the pool (finite-difference columns, candidate
+/// refits), the caller is parallel already: each block is a pass over the
+/// whole factor and wider blocks use the kernels better, so blocks are at
+/// least [`MIN_COLUMNS_PER_SHARED_BLOCK`] wide. They are split by
+/// `rayon::join`, which runs the second on the calling thread too unless
+/// an idle thread takes it: when one candidate's refit is the last work
+/// of a ranking, the other core helps with its solves instead of waiting.
+/// Blocks of 4 on every call had cost about a fifth more CPU time
+/// (session 16), and one block per call inside the pool (sessions 16 to
+/// 32) left that core idle; on the default diagnosis, blocks of 8 took
+/// about 5% off the wall time for 5% more CPU time (`docs/benchmarks.md`,
+/// session 33).
 fn solve_split(factor: &CholeskyFactor, rhs: MatMut<'_, f64>) {
-    let threads = match rayon::current_thread_index() {
-        Some(_) => 1,
-        None => rayon::current_num_threads(),
+    let per_block = match rayon::current_thread_index() {
+        Some(_) => MIN_COLUMNS_PER_SHARED_BLOCK,
+        None => MIN_COLUMNS_PER_THREAD,
     };
-    let blocks = threads.min(rhs.ncols() / MIN_COLUMNS_PER_THREAD);
+    let blocks = rayon::current_num_threads().min(rhs.ncols() / per_block);
     solve_blocks(factor, rhs, blocks.max(1));
 }
 
