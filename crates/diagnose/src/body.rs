@@ -42,11 +42,23 @@ use crate::place::Placement;
 use crate::series::{ProbeSeries, Series};
 
 /// Factorisations kept per plane body (one per distinct normalised
-/// material field and support).
-const PLANE_CACHE_SIZE: usize = 48;
+/// material field and support). An evaluation needs one per group of
+/// trials with proportional material fields (one group unless an effect
+/// makes the trials' fields differ other than by a factor), and a fit
+/// evaluates on two threads; entries a parameter point needs again are
+/// needed within a few evaluations. Until the cache is full every new
+/// factorisation clears fresh pages, and after, it takes over an evicted
+/// entry's storage: on the default diagnosis 16 entries (and 4 per slab)
+/// made the same 93 plane factorisations as 48 (and 8), but 22 instead of
+/// 51 on fresh storage, and the run took 31.2 and 33.1 s against 38.0 and
+/// 37.0 s, with 2.5 to 2.9 s of system time against 11 to 12 s and a peak
+/// of 3.0 GB against 4.3 to 4.5 GB (`docs/benchmarks.md`, session 33).
+const PLANE_CACHE_SIZE: usize = 16;
 /// Factorisations kept per 3-D slab: each holds a Cholesky factor of
-/// about 100 MB for the default marker grid, so 48 of them took 5 GB.
-const SLAB_CACHE_SIZE: usize = 8;
+/// about 100 MB for the default marker grid (48 of them took 5 GB). At 4
+/// the default diagnosis made 38 half-slab factorisations against 36 at 8,
+/// 7 of them on fresh storage against 10 or 11 (see [`PLANE_CACHE_SIZE`]).
+const SLAB_CACHE_SIZE: usize = 4;
 
 /// Points of a needle's surface, on the half circle above the mid-plane,
 /// over which [`Body::needle_drag`] averages: with the mirrored half, twelve
