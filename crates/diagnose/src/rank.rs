@@ -91,8 +91,9 @@ pub struct Candidate {
     pub score_p: f64,
     /// Number of tested parameters $k$.
     pub score_dof: usize,
-    /// Whether the model with the effect was refitted (see
-    /// [`rank_candidates`]); the fields below are `None` when not.
+    /// Whether the model with the effect was refitted (the best candidate
+    /// by score always is, the others when their score could get them
+    /// named); the fields below are `None` when not.
     pub refitted: bool,
     /// Likelihood-ratio statistic $\chi^2_\text{now} - \chi^2_\text{with}$.
     pub likelihood_ratio: Option<f64>,

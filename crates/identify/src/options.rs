@@ -16,7 +16,7 @@ pub enum PlaneModel {
     Strain,
     /// Plane stress ($\sigma_{zz} = 0$), a thin plate.
     Stress,
-    /// The 3-D slab $[0,w]\times[0,d]\times[-t/2,t/2]$ of tetrahedra
+    /// The 3-D slab $\[0,w\]\times\[0,d\]\times\[-t/2,t/2\]$ of tetrahedra
     /// (Tet10 for the default `Tri6` element, Tet4 for `Tri3`) with
     /// `slab_layers` element layers through the thickness, markers read on
     /// the top face $z = t/2$ and the probe force spread uniformly over the

@@ -12,7 +12,7 @@
 //! Young's modulus would ([`Effect::chain`]), which spares the fits a
 //! solve per Jacobian. Every effect has *null*
 //! parameter values at which it changes nothing: the score test of
-//! [`crate::rank`] evaluates the gradient there.
+//! the ranking (module `rank`) evaluates the gradient there.
 //!
 //! To add an effect: write one file in this folder implementing [`Effect`]
 //! and add one line to [`CATALOG`] (see `docs/adding-an-effect.md`).
