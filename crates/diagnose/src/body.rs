@@ -45,8 +45,8 @@ use crate::series::{ProbeSeries, Series};
 /// material field and support). An evaluation needs one per group of
 /// trials with proportional material fields (one group unless an effect
 /// makes the trials' fields differ other than by a factor), and a fit
-/// evaluates on every thread of the pool; entries a parameter point needs again are
-/// needed within a few evaluations. Until the cache is full every new
+/// evaluates on every thread of the pool; entries a parameter point needs
+/// again are needed within a few evaluations. Until the cache is full every new
 /// factorisation clears fresh pages, and after, it takes over an evicted
 /// entry's storage: on the default diagnosis 16 entries (and 4 per slab)
 /// made the same 93 plane factorisations as 48 (and 8), but 22 instead of
