@@ -785,6 +785,37 @@ impl<const D: usize> Body<D> {
         Ok([v[0] / scale, v[1] / scale])
     }
 
+    /// The dofs of the elements within `reach` (in plan, and of the
+    /// mid-plane in depth) of the box that holds the material line of
+    /// `placement`: where a re-placement of its load reads the
+    /// displacement (see [`Body::needle_drag`]; the entry's Newton steps
+    /// along the front face too) while the load moves by less than
+    /// `reach` less the needle's radius.
+    pub fn needle_dofs(
+        &self,
+        locator: &Locator<'_, D>,
+        placement: &Placement,
+        reach: f64,
+    ) -> Vec<usize> {
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for xy in &placement.material {
+            for axis in 0..2 {
+                lo[axis] = lo[axis].min(xy[axis] - reach);
+                hi[axis] = hi[axis].max(xy[axis] + reach);
+            }
+        }
+        let mut near = vec![false; self.mesh.node_count()];
+        for e in locator.candidates(lift(lo, -reach), lift(hi, reach)) {
+            for &n in self.mesh.element(e) {
+                near[n] = true;
+            }
+        }
+        (near.iter().enumerate())
+            .filter(|(_, near)| **near)
+            .flat_map(|(n, _)| D * n..D * (n + 1))
+            .collect()
+    }
+
     /// Largest x and y of the outline.
     pub fn extent(&self) -> [f64; 2] {
         self.extent

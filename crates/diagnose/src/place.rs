@@ -137,6 +137,12 @@ impl Placement {
         ]
     }
 
+    /// Whether every coordinate is a number (a re-placement in a partial
+    /// solution may have read outside it).
+    pub fn is_finite(&self) -> bool {
+        self.entry_offset.is_finite() && self.material.iter().flatten().all(|x| x.is_finite())
+    }
+
     /// The inserted length $L' = L - \delta$.
     pub fn inserted_length(&self, shaft: &Shaft) -> f64 {
         shaft.length - self.entry_offset

@@ -169,6 +169,7 @@ pub mod material;
 pub mod mesh;
 pub mod nonlinear_error;
 pub mod norm;
+mod reach;
 pub mod solve;
 pub mod solve_nonlinear;
 pub mod stress;

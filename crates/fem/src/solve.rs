@@ -7,7 +7,9 @@
 //! factor, so that
 //!
 //! - new loads cost two triangular solves ([`LinearProblem::solve`],
-//!   [`LinearProblem::solve_many`]);
+//!   [`LinearProblem::solve_many`]), and loads on a few dofs whose
+//!   solution is wanted near them a part of those
+//!   ([`LinearProblem::displacements_near`], see `reach`);
 //! - new materials cost one parallel assembly and one numeric factorisation
 //!   ([`LinearProblem::factorize`]), reusing pattern and symbolic analysis;
 //! - so do new spring stiffnesses of the same supports
@@ -26,8 +28,9 @@ use std::sync::Arc;
 
 use faer::dyn_stack::{MemStack, StackReq};
 use faer::perm::PermRef;
+use faer::reborrow::{IntoConst, ReborrowMut};
 use faer::sparse::linalg::cholesky::{
-    LltRef, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky,
+    LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering, factorize_symbolic_cholesky,
 };
 use faer::sparse::{SparseColMat, SparseColMatRef, SymbolicSparseColMat};
 use faer::{Conj, MatMut, Side};
@@ -39,6 +42,7 @@ use crate::dissect::dissection_order;
 use crate::error::FemError;
 use crate::material::Materials;
 use crate::mesh::Mesh;
+use crate::reach::{SupernodeTree, solve_reached};
 use crate::support::Support;
 
 /// Displacements and reactions of one solve.
@@ -88,16 +92,34 @@ pub struct LinearProblem<const D: usize> {
 /// same defaults as `Llt`.
 #[derive(Debug, Clone)]
 pub struct CholeskyFactor {
-    symbolic: Arc<SymbolicCholesky<usize>>,
+    analysis: Arc<Analysis>,
     values: Vec<f64>,
     factorized: bool,
 }
 
+/// A symbolic analysis and, for a supernodal one, its elimination tree of
+/// supernodes (for [`LinearProblem::displacements_near`]).
+#[derive(Debug)]
+struct Analysis {
+    symbolic: SymbolicCholesky<usize>,
+    tree: Option<SupernodeTree>,
+}
+
+impl Analysis {
+    fn new(symbolic: SymbolicCholesky<usize>) -> Self {
+        let tree = match symbolic.raw() {
+            SymbolicCholeskyRaw::Supernodal(supernodal) => Some(SupernodeTree::new(supernodal)),
+            SymbolicCholeskyRaw::Simplicial(_) => None,
+        };
+        Self { symbolic, tree }
+    }
+}
+
 impl CholeskyFactor {
-    /// An unfactorised factor on `symbolic`.
-    fn new(symbolic: Arc<SymbolicCholesky<usize>>) -> Self {
+    /// An unfactorised factor on `analysis`.
+    fn new(analysis: Arc<Analysis>) -> Self {
         Self {
-            symbolic,
+            analysis,
             values: Vec::new(),
             factorized: false,
         }
@@ -105,7 +127,7 @@ impl CholeskyFactor {
 
     /// The symbolic analysis (ordering, elimination tree, pattern of $L$).
     pub fn symbolic(&self) -> &SymbolicCholesky<usize> {
-        &self.symbolic
+        &self.analysis.symbolic
     }
 
     /// Whether [`CholeskyFactor::factorize`] has succeeded since the last
@@ -122,12 +144,11 @@ impl CholeskyFactor {
         // Zeroed as faer's `Llt` does for a fresh factor; the pages are the
         // last factor's, so this costs no page faults.
         self.values.clear();
-        self.values.resize(self.symbolic.len_val(), 0.0);
-        let scratch = self
-            .symbolic
-            .factorize_numeric_llt_scratch::<f64>(par, Default::default());
+        let symbolic = &self.analysis.symbolic;
+        self.values.resize(symbolic.len_val(), 0.0);
+        let scratch = symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default());
         with_scratch(scratch, |stack| {
-            self.symbolic.factorize_numeric_llt::<f64>(
+            symbolic.factorize_numeric_llt::<f64>(
                 &mut self.values,
                 lower,
                 Side::Lower,
@@ -155,16 +176,10 @@ impl CholeskyFactor {
 
     fn solve_factorized(&self, rhs: MatMut<'_, f64>) {
         let par = faer::get_global_parallelism();
-        let scratch = self
-            .symbolic
-            .solve_in_place_scratch::<f64>(rhs.ncols(), par);
+        let symbolic = &self.analysis.symbolic;
+        let scratch = symbolic.solve_in_place_scratch::<f64>(rhs.ncols(), par);
         with_scratch(scratch, |stack| {
-            LltRef::new(&self.symbolic, &self.values).solve_in_place_with_conj(
-                Conj::No,
-                rhs,
-                par,
-                stack,
-            );
+            LltRef::new(symbolic, &self.values).solve_in_place_with_conj(Conj::No, rhs, par, stack);
         });
     }
 }
@@ -221,7 +236,7 @@ impl<const D: usize> Clone for LinearProblem<D> {
     /// 74 MB factor on the default campaign's slab) then reuses the pages
     /// of a problem it is done with instead of clearing new ones.
     fn clone_from(&mut self, source: &Self) {
-        if !Arc::ptr_eq(&self.factor.symbolic, &source.factor.symbolic) {
+        if !Arc::ptr_eq(&self.factor.analysis, &source.factor.analysis) {
             *self = source.clone();
             return;
         }
@@ -326,7 +341,7 @@ impl<const D: usize> LinearProblem<D> {
             springs,
             reduced,
             gather,
-            factor: CholeskyFactor::new(Arc::new(symbolic)),
+            factor: CholeskyFactor::new(Arc::new(Analysis::new(symbolic))),
         })
     }
 
@@ -447,7 +462,7 @@ impl<const D: usize> LinearProblem<D> {
     /// (shared, not recomputed): for another matrix of the same pattern,
     /// such as a tangent stiffness.
     pub fn new_factor(&self) -> CholeskyFactor {
-        CholeskyFactor::new(Arc::clone(&self.factor.symbolic))
+        CholeskyFactor::new(Arc::clone(&self.factor.analysis))
     }
 
     /// Free dofs in ascending order: row `k` of the reduced system is dof
@@ -516,34 +531,8 @@ impl<const D: usize> LinearProblem<D> {
     /// The displacements alone of several load cases (no reactions: one
     /// sparse product per case less than [`LinearProblem::solve_many`]).
     pub fn displacements_many(&self, loads: &[&[f64]]) -> Result<Vec<Vec<f64>>, FemError> {
-        let dof_count = self.stiffness.nrows();
-        for f in loads {
-            if f.len() != dof_count {
-                return Err(FemError::DimensionMismatch {
-                    context: "load vector",
-                    expected: dof_count,
-                    actual: f.len(),
-                });
-            }
-            if let Some(&value) = f.iter().find(|v| !v.is_finite()) {
-                return Err(FemError::InvalidValue {
-                    field: "load vector",
-                    value,
-                    reason: "must be finite",
-                });
-            }
-        }
+        let (prescribed, lift) = self.lift_of(loads)?;
         let factor = self.factor()?;
-        // Lift of the prescribed values: f_f - K_fc u_c.
-        let mut prescribed = vec![0.0; dof_count];
-        for (d, v) in self.dirichlet.iter() {
-            prescribed[d] = v;
-        }
-        let lift = if self.dirichlet.iter().any(|(_, v)| v != 0.0) {
-            multiply(&self.stiffness, &prescribed)
-        } else {
-            vec![0.0; dof_count]
-        };
         let free = self.free.len();
         // This thread's kept storage (see `with_scratch`): on the default
         // campaign's slab the 40 right-hand sides of one call take 12 MB.
@@ -554,7 +543,7 @@ impl<const D: usize> LinearProblem<D> {
         if free > 0 {
             for (column, f) in storage.chunks_exact_mut(free).zip(loads) {
                 for (value, &d) in column.iter_mut().zip(&self.free) {
-                    *value = f[d] - lift[d];
+                    *value = f[d] - lift.as_ref().map_or(0.0, |l| l[d]);
                 }
             }
             solve_split(
@@ -578,6 +567,139 @@ impl<const D: usize> LinearProblem<D> {
             return Err(FemError::NonFinite("displacement solution"));
         }
         Ok(out)
+    }
+
+    /// The displacements of several load cases at the dofs `wanted`, and
+    /// at every other dof the solve reaches; `NaN` at the free dofs it
+    /// does not.
+    ///
+    /// The triangular solves run over the supernodes of the factor that
+    /// hold a nonzero of a load (after the lift of the prescribed values)
+    /// or a wanted dof, and their ancestors (see `reach`): for loads on a
+    /// few dofs, whose solution is wanted near them, a fraction of the
+    /// whole solve. The entries computed are those of
+    /// [`LinearProblem::displacements_many`] up to rounding. A factor too
+    /// small for faer's supernodal layout is solved whole, every entry
+    /// computed.
+    pub fn displacements_near(
+        &self,
+        loads: &[&[f64]],
+        wanted: &[usize],
+    ) -> Result<Vec<Vec<f64>>, FemError> {
+        let dof_count = self.stiffness.nrows();
+        if let Some(&dof) = wanted.iter().find(|&&d| d >= dof_count) {
+            return Err(FemError::DofOutOfRange {
+                context: "wanted dof",
+                dof,
+                dof_count,
+            });
+        }
+        let (prescribed, lift) = self.lift_of(loads)?;
+        let factor = self.factor()?;
+        let symbolic = factor.symbolic();
+        let (Some(tree), SymbolicCholeskyRaw::Supernodal(supernodal)) =
+            (&factor.analysis.tree, symbolic.raw())
+        else {
+            return self.displacements_many(loads);
+        };
+        // Row of the permuted system of each free dof, and whether the
+        // solve reaches it.
+        let inverse = symbolic.perm().map(|p| p.arrays().1);
+        let rows: Vec<usize> = (0..self.free.len())
+            .map(|k| inverse.map_or(k, |inverse| inverse[k]))
+            .collect();
+        let mut entries = Vec::new();
+        for (c, f) in loads.iter().enumerate() {
+            for (&d, &row) in self.free.iter().zip(&rows) {
+                let load = f[d] - lift.as_ref().map_or(0.0, |l| l[d]);
+                if load != 0.0 {
+                    entries.push((row, c, load));
+                }
+            }
+        }
+        let wanted_rows = wanted
+            .iter()
+            .filter_map(|&d| self.reduced_index(d).map(|k| rows[k]));
+        let reached = tree.reach(entries.iter().map(|&(row, _, _)| row).chain(wanted_rows));
+        // This thread's kept storage (see `displacements_many`); the solve
+        // reads and writes the reached rows alone, so only they are zeroed.
+        let free = self.free.len();
+        let mut storage = RIGHT_HAND_SIDES.take();
+        storage.resize(free * loads.len(), 0.0);
+        let mut x = MatMut::from_column_major_slice_mut(
+            &mut storage[..free * loads.len()],
+            free,
+            loads.len(),
+        );
+        for (s, _) in reached.iter().enumerate().filter(|(_, r)| **r) {
+            let span = tree.rows_of(s);
+            for c in 0..loads.len() {
+                x.rb_mut()
+                    .col_mut(c)
+                    .subrows_mut(span.start, span.len())
+                    .fill(0.0);
+            }
+        }
+        for &(row, c, load) in &entries {
+            x[(row, c)] = load;
+        }
+        solve_reached(supernodal, &factor.values, &reached, x.rb_mut());
+        let x = x.into_const();
+        let computed: Vec<bool> = rows
+            .iter()
+            .map(|&row| reached[tree.supernode_of(row)])
+            .collect();
+        let mut finite = true;
+        let out = (0..loads.len())
+            .map(|c| {
+                let mut u = prescribed.clone();
+                let column = x.col(c);
+                for ((&d, &row), &computed) in self.free.iter().zip(&rows).zip(&computed) {
+                    u[d] = if computed {
+                        finite &= column[row].is_finite();
+                        column[row]
+                    } else {
+                        f64::NAN
+                    };
+                }
+                u
+            })
+            .collect();
+        RIGHT_HAND_SIDES.set(storage);
+        if !finite {
+            return Err(FemError::NonFinite("displacement solution"));
+        }
+        Ok(out)
+    }
+
+    /// Checks `loads` and returns the prescribed displacements (zero at
+    /// free dofs) and, unless they are all zero, their lift $K u_c$, whose
+    /// free part the loads' right-hand sides subtract.
+    fn lift_of(&self, loads: &[&[f64]]) -> Result<(Vec<f64>, Option<Vec<f64>>), FemError> {
+        let dof_count = self.stiffness.nrows();
+        for f in loads {
+            if f.len() != dof_count {
+                return Err(FemError::DimensionMismatch {
+                    context: "load vector",
+                    expected: dof_count,
+                    actual: f.len(),
+                });
+            }
+            if let Some(&value) = f.iter().find(|v| !v.is_finite()) {
+                return Err(FemError::InvalidValue {
+                    field: "load vector",
+                    value,
+                    reason: "must be finite",
+                });
+            }
+        }
+        let mut prescribed = vec![0.0; dof_count];
+        for (d, v) in self.dirichlet.iter() {
+            prescribed[d] = v;
+        }
+        let lift = (self.dirichlet.iter().any(|(_, v)| v != 0.0))
+            .then(|| multiply(&self.stiffness, &prescribed));
+        Ok((prescribed, lift))
     }
 
     /// Nodal forces $f = K u$ that hold the body at displacement `u`.
