@@ -602,15 +602,13 @@ impl<const D: usize> LinearProblem<D> {
         else {
             return self.displacements_many(loads);
         };
-        // Row of the permuted system of each free dof, and whether the
-        // solve reaches it.
+        // The row of the permuted system of reduced index `k`.
         let inverse = symbolic.perm().map(|p| p.arrays().1);
-        let rows: Vec<usize> = (0..self.free.len())
-            .map(|k| inverse.map_or(k, |inverse| inverse[k]))
-            .collect();
+        let row_of = |k: usize| inverse.map_or(k, |inverse| inverse[k]);
         let mut entries = Vec::new();
         for (c, f) in loads.iter().enumerate() {
-            for (&d, &row) in self.free.iter().zip(&rows) {
+            for (k, &d) in self.free.iter().enumerate() {
+                let row = row_of(k);
                 let load = f[d] - lift.as_ref().map_or(0.0, |l| l[d]);
                 if load != 0.0 {
                     entries.push((row, c, load));
@@ -619,7 +617,7 @@ impl<const D: usize> LinearProblem<D> {
         }
         let wanted_rows = wanted
             .iter()
-            .filter_map(|&d| self.reduced_index(d).map(|k| rows[k]));
+            .filter_map(|&d| self.reduced_index(d).map(row_of));
         let reached = tree.reach(entries.iter().map(|&(row, _, _)| row).chain(wanted_rows));
         // This thread's kept storage (see `displacements_many`); the solve
         // reads and writes the reached rows alone, so only they are zeroed.
@@ -645,17 +643,14 @@ impl<const D: usize> LinearProblem<D> {
         }
         solve_reached(supernodal, &factor.values, &reached, x.rb_mut());
         let x = x.into_const();
-        let computed: Vec<bool> = rows
-            .iter()
-            .map(|&row| reached[tree.supernode_of(row)])
-            .collect();
         let mut finite = true;
         let out = (0..loads.len())
             .map(|c| {
                 let mut u = prescribed.clone();
                 let column = x.col(c);
-                for ((&d, &row), &computed) in self.free.iter().zip(&rows).zip(&computed) {
-                    u[d] = if computed {
+                for (k, &d) in self.free.iter().enumerate() {
+                    let row = row_of(k);
+                    u[d] = if reached[tree.supernode_of(row)] {
                         finite &= column[row].is_finite();
                         column[row]
                     } else {
