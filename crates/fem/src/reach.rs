@@ -90,8 +90,8 @@ impl SupernodeTree {
 
 /// Solves $LL^T X = B$ in place on the supernodes `reached` (an
 /// ancestor-closed set, from [`SupernodeTree::reach`]) for a permuted
-/// right-hand side `x` that is zero outside them; rows outside are left
-/// as they are.
+/// right-hand side `x` whose nonzeros all lie in them; rows outside are
+/// neither read nor written.
 pub(crate) fn solve_reached(
     symbolic: &SymbolicSupernodalCholesky<usize>,
     values: &[f64],

@@ -594,7 +594,6 @@ impl<const D: usize> LinearProblem<D> {
                 dof_count,
             });
         }
-        let (prescribed, lift) = self.lift_of(loads)?;
         let factor = self.factor()?;
         let symbolic = factor.symbolic();
         let (Some(tree), SymbolicCholeskyRaw::Supernodal(supernodal)) =
@@ -602,6 +601,7 @@ impl<const D: usize> LinearProblem<D> {
         else {
             return self.displacements_many(loads);
         };
+        let (prescribed, lift) = self.lift_of(loads)?;
         // The row of the permuted system of reduced index `k`.
         let inverse = symbolic.perm().map(|p| p.arrays().1);
         let row_of = |k: usize| inverse.map_or(k, |inverse| inverse[k]);
