@@ -89,11 +89,13 @@ impl Body {
             // `grid`).
             let mut singular_x = vec![0.0, p.width];
             singular_x.extend_from_slice(x_edges);
-            let levels = if scenario.effects.material_nonlinearity.is_some() {
-                NEO_HOOKEAN_GRADING_LEVELS
-            } else {
-                PLANE_GRADING_LEVELS
-            };
+            let levels =
+                r.plane_grading
+                    .unwrap_or(if scenario.effects.material_nonlinearity.is_some() {
+                        NEO_HOOKEAN_GRADING_LEVELS
+                    } else {
+                        PLANE_GRADING_LEVELS
+                    });
             grade(&mut xs, &singular_x, target, levels);
             grade(&mut ys, &[0.0, p.depth], target, levels);
         }

@@ -77,5 +77,5 @@ pub use camera::{CameraFrames, FrameSelection, TrueCamera};
 pub use effect::{EffectId, Effects};
 pub use error::SynthError;
 pub use generate::{Stage, Summary, TrialResponse, generate, respond};
-pub use scenario::{Scenario, SlabGrading, load_scenario};
+pub use scenario::{Resolution, Scenario, SlabGrading, load_scenario};
 pub use truth::GroundTruth;

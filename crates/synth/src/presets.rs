@@ -84,6 +84,7 @@ impl Scenario {
                 shaft_step: 0.0005,
                 indentation_step: 0.0005,
                 slab_grading: Some(PAPER_SLAB_GRADING),
+                plane_grading: None,
             },
             shaft: Shaft {
                 density: 8.0,

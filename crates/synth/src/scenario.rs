@@ -84,6 +84,21 @@ pub struct Resolution {
     /// Grading of the 3-D slab's mesh; absent, [`SlabGrading::DEFAULT`].
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub slab_grading: Option<SlabGrading>,
+    /// Levels of halving of the plane-strain truth's elements towards its
+    /// singular lines (the probe edges, the sides, the front and back
+    /// faces; `grid::grade`), at most [`Resolution::MAX_PLANE_GRADING`];
+    /// absent, 7 for the linear material and 3 for the neo-Hookean one,
+    /// whose Newton solve crushes finer corner elements (`grid`). A mesh
+    /// convergence study sets it; a campaign need not.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plane_grading: Option<usize>,
+}
+
+impl Resolution {
+    /// The most levels of `plane_grading` accepted: elements of $h/1024$
+    /// at the singular lines, finer than any study has needed (the finest
+    /// reference, refinement 12 with 8 levels, `docs/truth-world.md`).
+    pub const MAX_PLANE_GRADING: usize = 10;
 }
 
 /// Levels of halving of the 3-D slab's elements towards lines where its
@@ -338,6 +353,18 @@ impl Scenario {
                     format!(
                         "levels must be 0 to {}, got {levels:?}",
                         SlabGrading::MAX_LEVELS
+                    )
+                },
+            )?;
+        }
+        if let Some(levels) = r.plane_grading {
+            c.check(
+                levels <= Resolution::MAX_PLANE_GRADING,
+                "resolution.plane_grading",
+                || {
+                    format!(
+                        "levels must be 0 to {}, got {levels}",
+                        Resolution::MAX_PLANE_GRADING
                     )
                 },
             )?;

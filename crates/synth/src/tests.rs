@@ -378,6 +378,27 @@ fn neo_hookean_tangent_is_the_derivative_of_the_internal_forces_when_strained() 
     }
 }
 
+/// A scenario's `resolution.plane_grading` sets the plane truth's levels
+/// of grading; absent, each material keeps its own (`grid`).
+#[test]
+fn the_plane_truth_is_graded_as_the_scenario_says() {
+    use crate::grid::{NEO_HOOKEAN_GRADING_LEVELS, PLANE_GRADING_LEVELS};
+    let nodes = |s: &Scenario| World::new(s).unwrap().body.nodes.len();
+    let mut linear = small();
+    let mut neo_hookean = small();
+    neo_hookean.effects.material_nonlinearity = Some(crate::effect::MaterialNonlinearity);
+    let (linear_default, neo_hookean_default) = (nodes(&linear), nodes(&neo_hookean));
+    assert!(neo_hookean_default < linear_default);
+    linear.resolution.plane_grading = Some(PLANE_GRADING_LEVELS);
+    neo_hookean.resolution.plane_grading = Some(NEO_HOOKEAN_GRADING_LEVELS);
+    assert_eq!(nodes(&linear), linear_default);
+    assert_eq!(nodes(&neo_hookean), neo_hookean_default);
+    linear.resolution.plane_grading = Some(NEO_HOOKEAN_GRADING_LEVELS);
+    assert_eq!(nodes(&linear), neo_hookean_default);
+    linear.resolution.plane_grading = Some(0);
+    assert!(nodes(&linear) < neo_hookean_default);
+}
+
 /// The probe's force and marker field, neo-Hookean against linear on the
 /// same mesh. The linear response is the neo-Hookean one at a vanishing
 /// indentation (10 um) scaled up: its tangent at rest is the linear

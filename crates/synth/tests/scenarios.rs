@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use needle_synth::{EffectId, Scenario, SlabGrading, SynthError, load_scenario};
+use needle_synth::{EffectId, Resolution, Scenario, SlabGrading, SynthError, load_scenario};
 
 fn fixture(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -167,6 +167,15 @@ fn out_of_range_value_names_the_dotted_field() {
         matches!(e, SynthError::InvalidField { ref field, .. } if field == "resolution.slab_grading"),
         "{e}"
     );
+    let mut s = Scenario::null();
+    s.resolution.plane_grading = Some(Resolution::MAX_PLANE_GRADING + 1);
+    let e = s.validate("memory").unwrap_err();
+    assert!(
+        matches!(e, SynthError::InvalidField { ref field, .. } if field == "resolution.plane_grading"),
+        "{e}"
+    );
+    s.resolution.plane_grading = Some(Resolution::MAX_PLANE_GRADING);
+    s.validate("memory").unwrap();
 }
 
 #[test]
