@@ -491,20 +491,15 @@ fn physical_range_warnings(
 /// session 35). The fit cannot tell that bias from the data, so the run
 /// says where to look.
 fn unchecked_slab_warning(model: &Model, slab_refinement: usize) -> Option<String> {
-    model
-        .spec
-        .effects
-        .iter()
-        .any(|e| e == "out_of_plane")
-        .then(|| {
-            format!(
-                "the `out_of_plane` slab (refinement {slab_refinement}) is not refined by the mesh \
-             check: the fitted youngs_modulus, poisson_ratio and slab_weight may carry its \
-             mesh's bias beyond their intervals; rerun with --slab-refinement {} to see how \
-             far they move",
-                2 * slab_refinement
-            )
-        })
+    if !model.spec.effects.iter().any(|e| e == "out_of_plane") {
+        return None;
+    }
+    Some(format!(
+        "the `out_of_plane` slab (refinement {slab_refinement}) is not refined by the mesh \
+         check: the fitted youngs_modulus, poisson_ratio and slab_weight may carry its mesh's \
+         bias beyond their intervals; rerun with --slab-refinement {} to see how far they move",
+        2 * slab_refinement
+    ))
 }
 
 /// The noise (`None` for `repeated`: stated, as `initial`) and the

@@ -413,7 +413,8 @@ fn neo_hookean_truth_discretisation_error_is_below_a_tenth_of_the_marker_noise()
         })
         .collect();
     let pick = |m: &[[f64; 2]]| far.iter().map(|&k| m[k]).collect::<Vec<_>>();
-    let (far_largest, far_rms, far_worst, _) = compare(&pick(a_last), &pick(b_last), far.len());
+    let (far_a, far_b) = (pick(a_last), pick(b_last));
+    let (far_largest, far_rms, far_worst, _) = compare(&far_a, &far_b, far.len());
     let far_worst = far[far_worst];
     let force = (a.force.last().unwrap() - b.force.last().unwrap()).abs();
     // Beyond the near field the strain is small and the displacement
@@ -421,7 +422,6 @@ fn neo_hookean_truth_discretisation_error_is_below_a_tenth_of_the_marker_noise()
     // probe to a depth and the two meshes' forces differ; a model loaded
     // by the measured force (the diagnosis's) compares the markers at the
     // same force.
-    let (far_a, far_b) = (pick(a_last), pick(b_last));
     let amplitude = a.force.last().unwrap() / b.force.last().unwrap();
     let scaled: Vec<[f64; 2]> = far_b
         .iter()
