@@ -13,6 +13,7 @@ use crate::camera::TrueCamera;
 use crate::effect::material_nonlinearity::uniaxial_nominal_stress;
 use crate::error::SynthError;
 use crate::frames::{Staging, write_calibration};
+use crate::marker_mesh::{marker_scenario, read_markers_on};
 use crate::needle::{NeedleRun, insert};
 use crate::probe::{ProbeRun, press};
 use crate::record::{Recorded, Recorder, Source};
@@ -98,8 +99,13 @@ pub fn generate(
     let camera = TrueCamera::new(scenario);
     // The calibration images need no mechanics: they are rendered on the
     // second core while the phantom is meshed, assembled and factorised.
-    let (world, calibration) = rayon::join(
-        || World::new(scenario),
+    let marker_scenario = marker_scenario(scenario);
+    let (worlds, calibration) = rayon::join(
+        || -> Result<_, SynthError> {
+            let world = World::new(scenario)?;
+            let marker_world = marker_scenario.as_ref().map(World::new).transpose()?;
+            Ok((world, marker_world))
+        },
         || match (&scenario.frames, &staging) {
             (Some(frames), Some(staging)) => {
                 let dir = staging.path().join(needle_data::layout::CALIBRATION);
@@ -108,7 +114,7 @@ pub fn generate(
             _ => Ok(None),
         },
     );
-    let (world, calibration) = (world?, calibration?);
+    let ((world, marker_world), calibration) = (worlds?, calibration?);
     let probes = run_probes(&world, &progress)?;
     let probe_days: Vec<f64> = probes.iter().map(|r| r.probe.day).collect();
     let needle_days: Vec<f64> = needle_plans(scenario).iter().map(|p| p.day).collect();
@@ -190,7 +196,7 @@ pub fn generate(
     // The probe trials (their frames above all) are recorded on the second
     // core while the needles are solved.
     let (needles, probe_trials) = rayon::join(
-        || run_needles(&world, &progress),
+        || run_needles(&world, marker_world.as_ref(), &progress),
         || {
             jobs(TrialKind::Probe)
                 .par_iter()
@@ -240,6 +246,7 @@ pub fn generate(
             elements: world.body.element_count(),
             element_size: world.body.element_size,
             upper_half: world.body.upper_half,
+            marker_mesh_nodes: marker_world.as_ref().map(|w| w.body.nodes.len()),
         },
         stated_noise: stated,
         trials: truths,
@@ -284,8 +291,10 @@ pub struct TrialResponse {
 pub fn respond(scenario: &Scenario) -> Result<Vec<TrialResponse>, SynthError> {
     scenario.validate(&scenario.name)?;
     let world = World::new(scenario)?;
+    let marker_scenario = marker_scenario(scenario);
+    let marker_world = marker_scenario.as_ref().map(World::new).transpose()?;
     let probes = run_probes(&world, &|_| {})?;
-    let (needles, _) = run_needles(&world, &|_| {})?;
+    let (needles, _) = run_needles(&world, marker_world.as_ref(), &|_| {})?;
     let probe_days: Vec<f64> = probes.iter().map(|r| r.probe.day).collect();
     let needle_days: Vec<f64> = needles.iter().map(|r| r.plan.day).collect();
     Ok(campaign_order(&probe_days, &needle_days)
@@ -428,8 +437,11 @@ fn needle_plans(scenario: &Scenario) -> Vec<crate::scenario::NeedlePlan> {
     plans
 }
 
+/// The needle trials placed on `world`, their markers read on
+/// `marker_world` when the scenario has one (`marker_mesh`).
 fn run_needles(
     world: &World,
+    marker_world: Option<&World>,
     progress: &(impl Fn(Stage) + Sync),
 ) -> Result<(Vec<NeedleRun>, usize), SynthError> {
     let scenario = world.scenario;
@@ -448,12 +460,15 @@ fn run_needles(
             (*plan, &responses[d])
         })
         .collect();
-    let runs = insert(
+    let mut runs = insert(
         world,
         &trials,
         scenario.needles.depth,
         scenario.resolution.depth_step,
     )?;
+    if let Some(fine) = marker_world {
+        read_markers_on(fine, &mut runs)?;
+    }
     progress(Stage::Needles {
         done: days.len(),
         total: days.len(),

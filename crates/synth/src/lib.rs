@@ -34,6 +34,9 @@
 //!   a needle insertion keeps the columns of $K^{-1}$ for the dofs its
 //!   line loads, so that its consistency iterations need no
 //!   back-substitution ([`needle`]), and the insertions run in parallel.
+//!   With `resolution.marker_grading` the loads the needle was placed with
+//!   are solved again, state by state, on a finer slab, where the needle
+//!   trials' markers are read (`marker_mesh`; the fine paper default).
 //! - Needle shaft loads act at the material points whose deformed images
 //!   lie on the needle ([`needle`]); the tool force is their integral.
 //! - Measurements: force sensor noise and quantisation, Gaussian marker
@@ -44,8 +47,8 @@
 //!
 //! # Entry points
 //!
-//! [`load_scenario`], [`Scenario::paper_default`], [`Scenario::quick`],
-//! [`generate()`].
+//! [`load_scenario`], [`Scenario::paper_default`],
+//! [`Scenario::paper_default_fine`], [`Scenario::quick`], [`generate()`].
 
 pub mod camera;
 pub mod effect;
@@ -61,6 +64,7 @@ pub mod truth;
 mod body;
 mod grid;
 mod line_response;
+mod marker_mesh;
 mod presets;
 mod probe;
 mod record;

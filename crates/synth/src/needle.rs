@@ -108,6 +108,9 @@ pub(crate) struct NeedleRun {
     pub tip_material: [f64; 3],
     /// Displacement field of the last state.
     pub last_displacement: Vec<f64>,
+    /// The shaft load of each state: its loaded material points and
+    /// their forces along +y (N); none at the first state.
+    pub loads: Vec<Vec<([f64; 3], f64)>>,
     /// Linear solves (or Newton solves) done: kept columns and full
     /// solves.
     pub solves: usize,
@@ -259,6 +262,7 @@ fn insert_one(
         force: vec![0.0],
         tip_material: [plan.line, 0.0, 0.0],
         last_displacement: vec![0.0; dofs],
+        loads: vec![Vec::new()],
         solves: 0,
         full_solves: 0,
     };
@@ -318,6 +322,8 @@ fn insert_one(
         run.markers.push(solved.markers);
         run.entry.push(placed.entry);
         run.force.push(placed.force());
+        run.loads
+            .push(placed.points.iter().map(|p| (p.0, p.1)).collect());
         if k == last {
             // The whole field of the last state, for strains and the tip.
             let u = match solver {

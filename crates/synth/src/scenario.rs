@@ -92,6 +92,14 @@ pub struct Resolution {
     /// convergence study sets it; a campaign need not.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub plane_grading: Option<usize>,
+    /// Grading of a second, finer slab mesh on which the needle trials'
+    /// markers are solved (3-D linear truth only; ignored by the
+    /// plane-strain and neo-Hookean truths): the needle is placed on the
+    /// slab of `slab_grading`, and the load it carries at every state is
+    /// applied to this mesh, where the markers are read (`marker_mesh`).
+    /// Absent, they are read on the placement mesh.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub marker_grading: Option<SlabGrading>,
 }
 
 impl Resolution {
@@ -344,18 +352,23 @@ impl Scenario {
                 )
             },
         )?;
-        if let Some(g) = &r.slab_grading {
-            let levels = [g.faces, g.needle_lines, g.mid_plane, g.top_face];
-            c.check(
-                levels.iter().all(|&l| l <= SlabGrading::MAX_LEVELS),
-                "resolution.slab_grading",
-                || {
-                    format!(
-                        "levels must be 0 to {}, got {levels:?}",
-                        SlabGrading::MAX_LEVELS
-                    )
-                },
-            )?;
+        for (field, grading) in [
+            ("resolution.slab_grading", &r.slab_grading),
+            ("resolution.marker_grading", &r.marker_grading),
+        ] {
+            if let Some(g) = grading {
+                let levels = [g.faces, g.needle_lines, g.mid_plane, g.top_face];
+                c.check(
+                    levels.iter().all(|&l| l <= SlabGrading::MAX_LEVELS),
+                    field,
+                    || {
+                        format!(
+                            "levels must be 0 to {}, got {levels:?}",
+                            SlabGrading::MAX_LEVELS
+                        )
+                    },
+                )?;
+            }
         }
         if let Some(levels) = r.plane_grading {
             c.check(

@@ -13,6 +13,8 @@ use crate::scenario::{NeedlePlan, Scenario};
 use crate::slab_mesh::Span;
 use crate::system::{Factorised, Stiffness};
 use crate::world::World;
+use crate::{SlabGrading, TrialResponse, respond};
+use needle_data::TrialKind;
 use needle_fem::material::Materials;
 
 /// A small plane-strain null scenario: 6 x 6 markers, coarse mesh.
@@ -873,4 +875,83 @@ fn the_neo_hookean_slabs_upper_half_answers_as_the_whole() {
     assert!(largest > 1e-5 && gap < 1e-9 * largest, "{gap} of {largest}");
     let (fa, fb) = (*a.force.last().unwrap(), *b.force.last().unwrap());
     assert!((fa - fb).abs() < 1e-9 * fb, "{fa} vs {fb}");
+}
+
+/// Largest marker difference over every state of every needle trial
+/// (m), as vector lengths.
+fn needle_marker_gap(a: &[TrialResponse], b: &[TrialResponse]) -> f64 {
+    a.iter()
+        .zip(b)
+        .filter(|(t, _)| t.kind == TrialKind::Needle)
+        .flat_map(|(t, u)| t.markers.iter().zip(&u.markers))
+        .flat_map(|(p, q)| p.iter().zip(q))
+        .map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1]))
+        .fold(0.0, f64::max)
+}
+
+/// The small slab graded as `grading`, its markers read on `markers`.
+fn graded_slab(grading: SlabGrading, markers: Option<SlabGrading>) -> Scenario {
+    let mut s = plane_and_slab()[1].clone();
+    s.probes.clear();
+    s.resolution.slab_grading = Some(grading);
+    s.resolution.marker_grading = markers;
+    s
+}
+
+#[test]
+fn markers_read_on_a_copy_of_the_placement_mesh_are_the_placement_mesh_s() {
+    let grading = SlabGrading::DEFAULT;
+    let alone = respond(&graded_slab(grading, None)).unwrap();
+    let copied = respond(&graded_slab(grading, Some(grading))).unwrap();
+    let largest = alone
+        .iter()
+        .flat_map(|t| t.markers.iter().flatten())
+        .map(|p| p[0].hypot(p[1]))
+        .fold(0.0, f64::max);
+    let gap = needle_marker_gap(&alone, &copied);
+    assert!(largest > 1e-4, "the needle moves the markers: {largest} m");
+    // The same loads, solved by back-substitution instead of from the
+    // kept columns: equal up to round-off.
+    assert!(gap < 1e-12 * largest.max(1.0), "markers differ by {gap} m");
+    for (a, c) in alone.iter().zip(&copied) {
+        assert_eq!(a.force, c.force, "{}: the force is the placement's", a.id);
+    }
+}
+
+#[test]
+fn a_finer_marker_mesh_brings_the_markers_near_the_converged_ones() {
+    let coarse = SlabGrading::DEFAULT;
+    let fine = SlabGrading {
+        faces: 3,
+        needle_lines: 2,
+        mid_plane: 1,
+        top_face: 2,
+    };
+    let reference = SlabGrading {
+        faces: 4,
+        needle_lines: 3,
+        mid_plane: 2,
+        top_face: 3,
+    };
+    let converged = respond(&graded_slab(reference, None)).unwrap();
+    let alone = respond(&graded_slab(coarse, None)).unwrap();
+    let read_fine = respond(&graded_slab(coarse, Some(fine))).unwrap();
+    let fine_alone = respond(&graded_slab(fine, None)).unwrap();
+    let before = needle_marker_gap(&alone, &converged);
+    let after = needle_marker_gap(&read_fine, &converged);
+    let fine_error = needle_marker_gap(&fine_alone, &converged);
+    // Measured: 27.7 um from the placement mesh, 8.0 um read on the
+    // finer one, 5.9 um on the finer mesh alone (the rest is the coarse
+    // placement's).
+    assert!(
+        after < 0.35 * before,
+        "read on the finer mesh {after} m from the converged markers, {before} m before"
+    );
+    assert!(
+        after - fine_error < 0.25 * (before - fine_error),
+        "{after} m against the finer mesh's own {fine_error} m and {before} m"
+    );
+    for (a, r) in alone.iter().zip(&read_fine) {
+        assert_eq!(a.force, r.force, "{}: the force is the placement's", a.id);
+    }
 }

@@ -47,6 +47,11 @@ pub struct Discretisation {
     /// are the half's); see `slab_mesh`.
     #[serde(default)]
     pub upper_half: bool,
+    /// Nodes of the finer mesh the needle trials' markers were solved on
+    /// (`resolution.marker_grading`), if any; the counts above are then
+    /// those of the mesh the needle was placed on.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub marker_mesh_nodes: Option<usize>,
 }
 
 /// True values of one trial.

@@ -15,6 +15,7 @@ fn fixture(name: &str) -> PathBuf {
 fn stored_fixtures_equal_the_presets() {
     let mut presets = vec![
         Scenario::paper_default(),
+        Scenario::paper_default_fine(),
         Scenario::quick(),
         Scenario::null(),
         Scenario::two_effects(),
@@ -165,6 +166,16 @@ fn out_of_range_value_names_the_dotted_field() {
     let e = s.validate("memory").unwrap_err();
     assert!(
         matches!(e, SynthError::InvalidField { ref field, .. } if field == "resolution.slab_grading"),
+        "{e}"
+    );
+    let mut s = Scenario::paper_default();
+    s.resolution.marker_grading = Some(SlabGrading {
+        top_face: SlabGrading::MAX_LEVELS + 1,
+        ..SlabGrading::DEFAULT
+    });
+    let e = s.validate("memory").unwrap_err();
+    assert!(
+        matches!(e, SynthError::InvalidField { ref field, .. } if field == "resolution.marker_grading"),
         "{e}"
     );
     let mut s = Scenario::null();
