@@ -6,7 +6,7 @@
 use std::path::Path;
 
 use needle_data::{TrialKind, read_bundle};
-use needle_synth::{EffectId, Effects, Scenario, SynthError, generate, respond};
+use needle_synth::{EffectId, Effects, Scenario, SlabGrading, SynthError, generate, respond};
 
 /// The paper phantom with a coarse mesh, few markers, short trials.
 fn small() -> Scenario {
@@ -59,6 +59,51 @@ fn a_campaign_without_insertions_writes_its_probes_alone() {
         assert_eq!(kinds, [TrialKind::Probe]);
         assert!(campaign.trials[0].markers.as_ref().unwrap().frame_count() > 1);
     }
+}
+
+/// With `resolution.marker_grading` the needle trials' tracks come from
+/// the finer mesh and the probes' stay on the placement mesh; the truth
+/// file says how large the finer mesh was.
+#[test]
+fn a_slab_campaign_reads_its_needle_markers_on_its_marker_mesh() {
+    let mut placed = small();
+    placed.effects = Effects::none().with(EffectId::OutOfPlane);
+    placed.resolution.layers = 2;
+    let mut read_finer = placed.clone();
+    read_finer.resolution.marker_grading = Some(SlabGrading {
+        faces: 3,
+        needle_lines: 2,
+        mid_plane: 1,
+        top_face: 2,
+    });
+    let dir = tempfile::tempdir().unwrap();
+    let run = |s: &Scenario, name: &str| {
+        let bundle = dir.path().join(name);
+        let summary =
+            generate(s, &bundle, &dir.path().join(format!("{name}.ron")), |_| {}).unwrap();
+        (files(&bundle), summary.truth.discretisation)
+    };
+    let (alone, mesh) = run(&placed, "alone");
+    let (finer, finer_mesh) = run(&read_finer, "finer");
+    assert_eq!(mesh.marker_mesh_nodes, None);
+    assert_eq!(
+        (finer_mesh.nodes, finer_mesh.elements),
+        (mesh.nodes, mesh.elements)
+    );
+    assert!(finer_mesh.marker_mesh_nodes.unwrap() > 2 * mesh.nodes);
+    let names: Vec<&String> = alone.iter().map(|f| &f.0).collect();
+    assert_eq!(names, finer.iter().map(|f| &f.0).collect::<Vec<_>>());
+    let mut needle_tracks = 0;
+    for ((name, a), (_, b)) in alone.iter().zip(&finer) {
+        let needle_tracks_file = name.contains("needle") && name.contains("markers");
+        if needle_tracks_file {
+            needle_tracks += 1;
+            assert_ne!(a, b, "{name}: read on the finer mesh");
+        } else {
+            assert_eq!(a, b, "{name}: not the needle's markers");
+        }
+    }
+    assert!(needle_tracks > 0);
 }
 
 #[test]
