@@ -37,11 +37,11 @@ pub(crate) const PAPER_SLAB_GRADING: SlabGrading = SlabGrading {
 };
 
 /// The placement mesh of the fine paper default: as the paper default's,
-/// with two levels towards each needle line. With one, the placement
-/// alone moved the markers of some states by about 1 um; with two, the
-/// markers read on [`PAPER_FINE_MARKER_GRADING`] are within 0.66 um of
-/// the convergence test's reference at every state (`docs/truth-world.md`,
-/// The 3-D slab).
+/// with two levels towards each needle line. With one, the markers read
+/// on [`PAPER_FINE_MARKER_GRADING`] were 1.12 um from the convergence
+/// test's reference at one state, where the loads were placed less well;
+/// with two, they are within 0.66 um at every state
+/// (`docs/truth-world.md`, The 3-D slab).
 pub(crate) const PAPER_FINE_SLAB_GRADING: SlabGrading = SlabGrading {
     needle_lines: 2,
     ..PAPER_SLAB_GRADING
@@ -190,8 +190,8 @@ impl Scenario {
     /// tenth of the marker noise: the needle placed on the slab of
     /// [`PAPER_FINE_SLAB_GRADING`], the needle trials' markers read on that
     /// of [`PAPER_FINE_MARKER_GRADING`] (`resolution.marker_grading`,
-    /// `marker_mesh`). It takes some nine times the paper default's time
-    /// and ten times its memory to generate (`docs/truth-world.md`).
+    /// `marker_mesh`). It takes about ten times the paper default's time
+    /// and memory to generate (`docs/truth-world.md`).
     pub fn paper_default_fine() -> Self {
         let paper = Self::paper_default();
         Scenario {
