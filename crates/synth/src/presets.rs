@@ -37,11 +37,10 @@ pub(crate) const PAPER_SLAB_GRADING: SlabGrading = SlabGrading {
 };
 
 /// The placement mesh of the fine paper default: as the paper default's,
-/// with two levels towards each needle line. With one, the markers read
-/// on [`PAPER_FINE_MARKER_GRADING`] were 1.12 um from the convergence
-/// test's reference at one state, where the loads were placed less well;
-/// with two, they are within 0.66 um at every state
-/// (`docs/truth-world.md`, The 3-D slab).
+/// with two levels towards each needle line. On the convergence test's
+/// null insertion the markers read on [`PAPER_FINE_MARKER_GRADING`] were
+/// 1.12 um from the reference at one state with one level, 0.66 um at
+/// worst with two (`docs/truth-world.md`, The 3-D slab).
 pub(crate) const PAPER_FINE_SLAB_GRADING: SlabGrading = SlabGrading {
     needle_lines: 2,
     ..PAPER_SLAB_GRADING
@@ -186,12 +185,16 @@ impl Scenario {
         s
     }
 
-    /// The paper's campaign with the slab's discretisation error within a
-    /// tenth of the marker noise: the needle placed on the slab of
-    /// [`PAPER_FINE_SLAB_GRADING`], the needle trials' markers read on that
-    /// of [`PAPER_FINE_MARKER_GRADING`] (`resolution.marker_grading`,
-    /// `marker_mesh`). It takes about ten times the paper default's time
-    /// and memory to generate (`docs/truth-world.md`).
+    /// The paper's campaign with a smaller discretisation error in its
+    /// slab: the needle placed on the slab of [`PAPER_FINE_SLAB_GRADING`],
+    /// the needle trials' markers read on that of
+    /// [`PAPER_FINE_MARKER_GRADING`] (`resolution.marker_grading`,
+    /// `marker_mesh`). On the convergence test's insertions its markers
+    /// are within a tenth of the marker noise of the reference except just
+    /// after the entry of one with the tip's cutting force, where the
+    /// placement leaves about a quarter of it; it takes about ten times
+    /// the paper default's time and memory to generate
+    /// (`docs/truth-world.md`, The 3-D slab).
     pub fn paper_default_fine() -> Self {
         let paper = Self::paper_default();
         Scenario {

@@ -15,11 +15,14 @@
 //! default mesh within a tenth of the marker noise of the reference, and
 //! prints the tables that `docs/truth-world.md` quotes. It fails: the
 //! default is some 4.5 µm away.
-//! A second test solves the same insertion as the fine paper default does
-//! (`Scenario::paper_default_fine`: the needle placed on a slab graded
-//! once more towards the needle lines, the markers read on a finer mesh,
-//! `resolution.marker_grading`) and asserts it within a tenth of the
-//! noise of that reference at every state; it passes.
+//! A second test solves that insertion, and one with the paper default's
+//! tip peak and velocity friction at 9 mm/s on another line, as the fine
+//! paper default does (`Scenario::paper_default_fine`: the needle placed
+//! on a slab graded once more towards the needle lines, the markers read
+//! on a finer mesh, `resolution.marker_grading`), and asserts both within
+//! a tenth of the noise of their references at every state. It fails: the
+//! first is 0.66 µm away at worst, the second 1.8 µm just after the entry,
+//! where the needle's placement on the coarser mesh limits it.
 //! A third test measures the interpolation between needle states. A
 //! fourth compares the plane-strain truth of `fixtures/scenarios/null.ron`
 //! (one probe, one insertion; its grid graded towards the probe edges,
@@ -186,6 +189,28 @@ fn largest_over_states(a: &[Vec<[f64; 2]>], b: &[Vec<[f64; 2]>]) -> (f64, usize)
         )
 }
 
+/// The insertion of the null slab above, and one of the paper default's
+/// last insertions: 9 mm/s on day 5 on the line x = 39.5 mm, with its
+/// velocity-dependent friction and the tip's cutting force.
+fn insertions() -> [(&'static str, Scenario); 2] {
+    let null = slab(1, 4, 0.005);
+    let mut paper_like = slab(1, 4, 0.005);
+    paper_like.effects = Effects::none()
+        .with(EffectId::OutOfPlane)
+        .with(EffectId::VelocityDependentFriction)
+        .with(EffectId::TipCuttingForce);
+    paper_like.needles.velocities = vec![0.009];
+    paper_like.needles.days = vec![5.0];
+    paper_like.needles.first_line = 0.0395;
+    [
+        ("null slab, 1 mm/s, x = 12 mm", null),
+        (
+            "tip peak and velocity friction, 9 mm/s, x = 39.5 mm",
+            paper_like,
+        ),
+    ]
+}
+
 #[test]
 #[ignore = "minutes: the slab's markers read on a finer mesh against the reference"]
 fn the_fine_paper_default_is_within_a_tenth_of_the_marker_noise() {
@@ -193,63 +218,69 @@ fn the_fine_paper_default_is_within_a_tenth_of_the_marker_noise() {
     let paper = Scenario::paper_default().resolution;
     let sigma = Scenario::paper_default_fine().sensors.marker_sigma;
     assert_eq!((fine.refinement, fine.layers), (1, 4), "as the reference");
-    let insertion = |placement: Option<SlabGrading>, markers: Option<SlabGrading>| {
-        let mut s = slab(1, 4, 0.005);
-        s.resolution.slab_grading = placement;
-        s.resolution.marker_grading = markers;
-        respond(&s).unwrap().remove(0).markers
-    };
-    // The reference of the test above: its finest level through the
-    // thickness.
-    let reference = insertion(
-        Some(SlabGrading {
-            faces: 5,
-            needle_lines: 4,
-            mid_plane: 3,
-            top_face: 3,
-        }),
-        None,
-    );
-    let rows = [
-        ("the paper default's mesh", paper.slab_grading, None),
-        (
-            "the fine paper default's placement mesh",
-            fine.slab_grading,
+    let mut worst_fine: f64 = 0.0;
+    for (insertion_name, scenario) in insertions() {
+        let insertion = |placement: Option<SlabGrading>, markers: Option<SlabGrading>| {
+            let mut s = scenario.clone();
+            s.resolution.slab_grading = placement;
+            s.resolution.marker_grading = markers;
+            respond(&s).unwrap().remove(0).markers
+        };
+        // The reference of the test above: its finest level through the
+        // thickness.
+        let reference = insertion(
+            Some(SlabGrading {
+                faces: 5,
+                needle_lines: 4,
+                mid_plane: 3,
+                top_face: 3,
+            }),
             None,
-        ),
-        ("its marker mesh alone", fine.marker_grading, None),
-        (
-            "the paper default's placement, markers on the marker mesh",
-            paper.slab_grading,
-            fine.marker_grading,
-        ),
-        (
-            "the fine paper default",
-            fine.slab_grading,
-            fine.marker_grading,
-        ),
-    ];
-    println!("against the reference, largest over the markers at each of the 13 states (um):");
-    let mut last = 0.0;
-    for (name, placement, markers) in rows {
-        let states = insertion(placement, markers);
-        let per_state: Vec<String> = states
-            .iter()
-            .zip(&reference)
-            .map(|(a, b)| format!("{:.2}", largest_difference(a, b) * 1e6))
-            .collect();
-        let (worst, at) = largest_over_states(&states, &reference);
-        println!(
-            "| {name} | {:.2} (state {at}, {:.3} sigma) | {} |",
-            worst * 1e6,
-            worst / sigma,
-            per_state.join(" ")
         );
-        last = worst;
+        let rows = [
+            ("the paper default's mesh", paper.slab_grading, None),
+            (
+                "the fine paper default's marker mesh alone",
+                fine.marker_grading,
+                None,
+            ),
+            (
+                "the paper default's placement, markers on the marker mesh",
+                paper.slab_grading,
+                fine.marker_grading,
+            ),
+            (
+                "the fine paper default",
+                fine.slab_grading,
+                fine.marker_grading,
+            ),
+        ];
+        println!(
+            "{insertion_name}: against the reference, largest over the markers at each of the {} states (um):",
+            reference.len()
+        );
+        for (name, placement, markers) in rows {
+            let states = insertion(placement, markers);
+            let per_state: Vec<String> = states
+                .iter()
+                .zip(&reference)
+                .map(|(a, b)| format!("{:.2}", largest_difference(a, b) * 1e6))
+                .collect();
+            let (worst, at) = largest_over_states(&states, &reference);
+            println!(
+                "| {name} | {:.2} (state {at}, {:.3} sigma) | {} |",
+                worst * 1e6,
+                worst / sigma,
+                per_state.join(" ")
+            );
+            if name == "the fine paper default" {
+                worst_fine = worst_fine.max(worst);
+            }
+        }
     }
     assert!(
-        last < 0.1 * sigma,
-        "the fine paper default {last} m from the reference, sigma {sigma} m"
+        worst_fine < 0.1 * sigma,
+        "the fine paper default {worst_fine} m from the reference, sigma {sigma} m"
     );
 }
 
