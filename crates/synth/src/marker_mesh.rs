@@ -73,7 +73,7 @@ pub(crate) fn read_markers_on(fine: &World, runs: &mut [NeedleRun]) -> Result<()
         .flat_map(|r| (1..runs[r].depths.len()).map(move |k| (r, k)))
         .collect();
     jobs.sort_by(|a, b| runs[a.0].plan.day.total_cmp(&runs[b.0].plan.day));
-    let read = |block: &[(usize, usize)]| -> Result<Vec<Vec<[f64; 3]>>, SynthError> {
+    let read_block = |block: &[(usize, usize)]| -> Result<Vec<Vec<[f64; 3]>>, SynthError> {
         let loads: Vec<Vec<f64>> = block
             .iter()
             .map(|&(r, k)| {
@@ -94,15 +94,15 @@ pub(crate) fn read_markers_on(fine: &World, runs: &mut [NeedleRun]) -> Result<()
             .map(|u| fine.marker_displacements(u))
             .collect())
     };
-    let read: Vec<Vec<[f64; 3]>> = jobs
+    let readings: Vec<Vec<[f64; 3]>> = jobs
         .par_chunk_by(|a, b| runs[a.0].plan.day == runs[b.0].plan.day)
         .flat_map(|same_day| same_day.par_chunks(SOLVE_BLOCK))
-        .map(read)
+        .map(read_block)
         .collect::<Result<Vec<_>, _>>()?
         .into_iter()
         .flatten()
         .collect();
-    for (&(r, k), markers) in jobs.iter().zip(read) {
+    for (&(r, k), markers) in jobs.iter().zip(readings) {
         runs[r].markers[k] = markers;
     }
     Ok(())
