@@ -259,6 +259,8 @@ fn the_fine_paper_default_is_within_a_tenth_of_the_marker_noise() {
             "{insertion_name}: against the reference, largest over the markers at each of the {} states (um):",
             reference.len()
         );
+        // The last row is the fine paper default's.
+        let mut last_row = 0.0;
         for (name, placement, markers) in rows {
             let states = insertion(placement, markers);
             let per_state: Vec<String> = states
@@ -273,10 +275,9 @@ fn the_fine_paper_default_is_within_a_tenth_of_the_marker_noise() {
                 worst / sigma,
                 per_state.join(" ")
             );
-            if name == "the fine paper default" {
-                worst_fine = worst_fine.max(worst);
-            }
+            last_row = worst;
         }
+        worst_fine = worst_fine.max(last_row);
     }
     assert!(
         worst_fine < 0.1 * sigma,
