@@ -83,7 +83,14 @@ impl Body {
         if slab {
             let needles: Vec<f64> = scenario.needles.plan().iter().map(|n| n.line).collect();
             let extent = (p.width, p.depth);
-            grade_plan(&mut xs, &mut ys, extent, &needles, target, &grading);
+            grade_plan(
+                &mut xs,
+                &mut ys,
+                extent,
+                (&needles, x_edges),
+                target,
+                &grading,
+            );
         } else {
             // The plane truth is graded towards its singular lines (see
             // `grid`).

@@ -15,7 +15,8 @@ use crate::error::SynthError;
 use crate::frames::{Staging, write_calibration};
 use crate::marker_mesh::{marker_scenario, read_markers_on};
 use crate::needle::{NeedleRun, insert};
-use crate::probe::{ProbeRun, press};
+use crate::probe::{Factorisation, ProbeRun, press};
+use crate::probe_mesh::probe_scenario;
 use crate::record::{Recorded, Recorder, Source};
 use crate::scenario::Scenario;
 use crate::sensor::{Instruments, stated_force_sigma};
@@ -247,6 +248,7 @@ pub fn generate(
             element_size: world.body.element_size,
             upper_half: world.body.upper_half,
             marker_mesh_nodes: marker_world.as_ref().map(|w| w.body.nodes.len()),
+            probe_mesh_nodes: probes.iter().filter_map(|r| r.mesh_nodes).collect(),
         },
         stated_noise: stated,
         trials: truths,
@@ -308,7 +310,7 @@ pub fn respond(scenario: &Scenario) -> Result<Vec<TrialResponse>, SynthError> {
                     states: r.indentations.clone(),
                     markers: in_plane(&r.markers),
                     force: r.force.clone(),
-                    peak_strain: peak_strain(&world.body, &r.last_displacement),
+                    peak_strain: r.peak_strain,
                 }
             }
             _ => {
@@ -422,7 +424,14 @@ fn run_probes(
         .probes
         .par_iter()
         .map(|probe| {
-            let run = press(world, probe);
+            let run = match probe_scenario(world.scenario, probe) {
+                Some(own) => World::new(&own).and_then(|alone| {
+                    let mut run = press(&alone, probe, Factorisation::Own)?;
+                    run.mesh_nodes = Some(alone.body.nodes.len());
+                    Ok(run)
+                }),
+                None => press(world, probe, Factorisation::Shared),
+            };
             let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
             progress(Stage::Probes { done: d, total });
             run

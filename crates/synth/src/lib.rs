@@ -37,6 +37,9 @@
 //!   With `resolution.marker_grading` the loads the needle was placed with
 //!   are solved again, state by state, on a finer slab, where the needle
 //!   trials' markers are read (`marker_mesh`; the fine paper default).
+//!   With `resolution.probe_grading` each probe is pressed on a slab of
+//!   its own, graded towards its edges and factorised with its face held
+//!   (`probe_mesh`).
 //! - Needle shaft loads act at the material points whose deformed images
 //!   lie on the needle ([`needle`]); the tool force is their integral.
 //! - Measurements: force sensor noise and quantisation, Gaussian marker
@@ -67,6 +70,7 @@ mod line_response;
 mod marker_mesh;
 mod presets;
 mod probe;
+mod probe_mesh;
 mod record;
 mod shaft;
 mod slab_mesh;

@@ -16,13 +16,17 @@
 //! \;\Rightarrow\; u = G\lambda,\quad G = K^{-1}C^T,\quad
 //! (C G)\,\lambda = \delta\,\mathbf 1,$$
 //! $m$ back-substitutions and an $m \times m$ Cholesky solve; $\lambda$ are
-//! the reactions under the probe. The nonlinear truth holds the face in
-//! its Newton solver on a grid of indentations, interpolated between them.
+//! the reactions under the probe. A probe pressed on a slab of its own
+//! (`probe_mesh`) has no factorisation to share: that slab is factorised
+//! with the face held, and one solve gives $u$. The nonlinear truth holds
+//! the face in its Newton solver on a grid of indentations, interpolated
+//! between them.
 
 use nalgebra::{DMatrix, DVector};
 
 use crate::error::SynthError;
 use crate::scenario::ProbeTrial;
+use crate::strain::peak_strain;
 use crate::world::World;
 
 /// The solved states of one probing trial.
@@ -39,12 +43,32 @@ pub(crate) struct ProbeRun {
     pub force: Vec<f64>,
     /// Moment about z at the probe centre (N m).
     pub moment: Vec<f64>,
-    /// Displacement field at full indentation.
+    /// Displacement field at full indentation, on the mesh the probe was
+    /// pressed on.
     pub last_displacement: Vec<f64>,
+    /// Largest principal strain at full indentation.
+    pub peak_strain: f64,
+    /// Nodes of the slab of its own the probe was pressed on
+    /// (`probe_mesh`), if any.
+    pub mesh_nodes: Option<usize>,
 }
 
-/// Simulates one probing trial.
-pub(crate) fn press(world: &World, probe: &ProbeTrial) -> Result<ProbeRun, SynthError> {
+/// Which factorisation a linear probe is solved with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Factorisation {
+    /// The day's, shared with the other trials on the same mesh, the face
+    /// held through Lagrange multipliers.
+    Shared,
+    /// Its own, with the face held (a mesh made for this probe alone).
+    Own,
+}
+
+/// Simulates one probing trial; a linear one solved with `factorisation`.
+pub(crate) fn press(
+    world: &World,
+    probe: &ProbeTrial,
+    factorisation: Factorisation,
+) -> Result<ProbeRun, SynthError> {
     let body = &world.body;
     let tol = 1e-9 * world.scenario.phantom.width;
     let half = probe.width / 2.0 + tol;
@@ -58,6 +82,8 @@ pub(crate) fn press(world: &World, probe: &ProbeTrial) -> Result<ProbeRun, Synth
         force: vec![0.0],
         moment: vec![0.0],
         last_displacement: vec![0.0; dofs],
+        peak_strain: 0.0,
+        mesh_nodes: None,
     };
     let mut record = |delta: f64, u: Vec<f64>, reactions: &[f64]| {
         let force: f64 = body.copies()
@@ -76,7 +102,15 @@ pub(crate) fn press(world: &World, probe: &ProbeTrial) -> Result<ProbeRun, Synth
         run.moment.push(moment);
         run.last_displacement = u;
     };
-    if world.scenario.effects.material_nonlinearity.is_none() {
+    let linear = world.scenario.effects.material_nonlinearity.is_none();
+    if linear && factorisation == Factorisation::Own {
+        let what = format!("the phantom pressed by the probe at x = {} m", probe.x);
+        let (u, reactions) = world.press_linear(probe.day, &held, probe.indentation, &what)?;
+        record(probe.indentation, u, &reactions);
+        run.peak_strain = peak_strain(body, &run.last_displacement);
+        return Ok(run);
+    }
+    if linear {
         let response = world.response(probe.day)?;
         let columns: Vec<Vec<f64>> = held
             .iter()
@@ -104,6 +138,7 @@ pub(crate) fn press(world: &World, probe: &ProbeTrial) -> Result<ProbeRun, Synth
         }
         let reactions = response.internal_forces(body, &u);
         record(probe.indentation, u, &reactions);
+        run.peak_strain = peak_strain(body, &run.last_displacement);
         return Ok(run);
     }
     let solver = world.neo_hookean(probe.day, &held)?;
@@ -130,5 +165,6 @@ pub(crate) fn press(world: &World, probe: &ProbeTrial) -> Result<ProbeRun, Synth
         let reactions = solver.internal_forces(body, &u);
         record(delta, u.clone(), &reactions);
     }
+    run.peak_strain = peak_strain(body, &run.last_displacement);
     Ok(run)
 }

@@ -100,6 +100,13 @@ pub struct Resolution {
     /// Absent, they are read on the placement mesh.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub marker_grading: Option<SlabGrading>,
+    /// Grading of the slab each probe is pressed on alone (3-D linear
+    /// truth only; ignored by the plane-strain and neo-Hookean truths):
+    /// its own slab, with no needle lines, graded towards its edges by
+    /// `probe_edges` (`probe_mesh`). Absent, the probes are pressed on
+    /// the slab of `slab_grading`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub probe_grading: Option<SlabGrading>,
 }
 
 impl Resolution {
@@ -125,6 +132,15 @@ pub struct SlabGrading {
     pub mid_plane: usize,
     /// Through the thickness, towards the top face (the markers).
     pub top_face: usize,
+    /// In x, towards both edges of every probe (a rigid flat punch, whose
+    /// strain grows like $r^{-1/2}$ towards its edges), and in y towards
+    /// the front face it presses on, by as many levels; absent, 0.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub probe_edges: usize,
+}
+
+fn is_zero(levels: &usize) -> bool {
+    *levels == 0
 }
 
 impl SlabGrading {
@@ -136,10 +152,12 @@ impl SlabGrading {
         needle_lines: 0,
         mid_plane: 0,
         top_face: 0,
+        probe_edges: 0,
     };
 
-    /// The most levels of any kind: elements down to $h/256$.
-    pub const MAX_LEVELS: usize = 8;
+    /// The most levels of any kind: elements down to $h/1024$ (a probe
+    /// edge's reference in the convergence test takes 9).
+    pub const MAX_LEVELS: usize = 10;
 }
 
 /// Shaft force density without effects.
@@ -355,9 +373,16 @@ impl Scenario {
         for (field, grading) in [
             ("resolution.slab_grading", &r.slab_grading),
             ("resolution.marker_grading", &r.marker_grading),
+            ("resolution.probe_grading", &r.probe_grading),
         ] {
             if let Some(g) = grading {
-                let levels = [g.faces, g.needle_lines, g.mid_plane, g.top_face];
+                let levels = [
+                    g.faces,
+                    g.needle_lines,
+                    g.mid_plane,
+                    g.top_face,
+                    g.probe_edges,
+                ];
                 c.check(
                     levels.iter().all(|&l| l <= SlabGrading::MAX_LEVELS),
                     field,

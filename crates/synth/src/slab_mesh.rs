@@ -35,19 +35,24 @@ use crate::grid::grade;
 use crate::scenario::SlabGrading;
 
 /// Grades the in-plane grid lines `xs`, `ys` (elements at most `target`)
-/// of a `width` x `depth` slab towards its faces and sides and towards the
-/// needle lines `needles` (x).
+/// of a `width` x `depth` slab towards its faces and sides, the needle
+/// lines `needles` (x) and the probe edges `probe_edges` (x, on the front
+/// face y = 0).
 pub(crate) fn grade_plan(
     xs: &mut Vec<f64>,
     ys: &mut Vec<f64>,
     (width, depth): (f64, f64),
-    needles: &[f64],
+    (needles, probe_edges): (&[f64], &[f64]),
     target: f64,
     grading: &SlabGrading,
 ) {
     grade(xs, &[0.0, width], target, grading.faces);
     grade(ys, &[0.0, depth], target, grading.faces);
     grade(xs, needles, target, grading.needle_lines);
+    if !probe_edges.is_empty() {
+        grade(xs, probe_edges, target, grading.probe_edges);
+        grade(ys, &[0.0], target, grading.probe_edges);
+    }
 }
 
 /// How much of the slab the mesh covers.
@@ -123,6 +128,7 @@ mod tests {
             needle_lines: 0,
             mid_plane: 2,
             top_face: 1,
+            probe_edges: 0,
         };
         // Layers of 4 from -4 to 4: the top one split twice towards 0.
         assert_eq!(upper_planes(8.0, 2, &grading), [0.0, 1.0, 2.0, 4.0]);

@@ -8,7 +8,7 @@ use crate::line_response::{LineResponse, Missing};
 use crate::needle::{
     Band, CONSISTENCY_TOLERANCE, ENTRY_DEPTH, NeedleRun, depth_grid, insert, insert_with,
 };
-use crate::probe::press;
+use crate::probe::{Factorisation, press};
 use crate::scenario::{NeedlePlan, Scenario};
 use crate::slab_mesh::Span;
 use crate::system::{Factorised, Stiffness};
@@ -132,7 +132,7 @@ fn probe_force_balances_the_fixed_face_and_scales_linearly() {
     let s = small();
     let world = World::new(&s).unwrap();
     let probe = s.probes[0];
-    let run = press(&world, &probe).unwrap();
+    let run = press(&world, &probe, Factorisation::Shared).unwrap();
     let force = *run.force.last().unwrap();
     assert!(force > 0.0);
     let materials =
@@ -147,6 +147,7 @@ fn probe_force_balances_the_fixed_face_and_scales_linearly() {
             indentation: probe.indentation / 2.0,
             ..probe
         },
+        Factorisation::Shared,
     )
     .unwrap();
     assert!((2.0 * half.force.last().unwrap() - force).abs() < 1e-9 * force);
@@ -281,7 +282,7 @@ fn probe_by_lagrange_multipliers_equals_the_held_face_solve() {
     for s in plane_and_slab() {
         let world = World::new(&s).unwrap();
         let probe = s.probes[0];
-        let run = press(&world, &probe).unwrap();
+        let run = press(&world, &probe, Factorisation::Shared).unwrap();
         let dim = world.body.dim;
         let contact = world.body.nodes_where(|x| {
             x[1].abs() < 1e-12 && (x[0] - probe.x).abs() <= probe.width / 2.0 + 1e-12
@@ -300,6 +301,14 @@ fn probe_by_lagrange_multipliers_equals_the_held_face_solve() {
         let force: f64 = world.body.copies() * held.iter().map(|&d| r[d]).sum::<f64>();
         let got = *run.force.last().unwrap();
         assert!((got - force).abs() < 1e-9 * force, "{got} vs {force}");
+        // A probe with a factorisation of its own holds the face directly.
+        let own = press(&world, &probe, Factorisation::Own).unwrap();
+        let gap = largest_gap(&own.last_displacement, &expected);
+        assert!(gap < 1e-9 * probe.indentation, "own: gap {gap}");
+        let got = *own.force.last().unwrap();
+        assert!((got - force).abs() < 1e-9 * force, "own: {got} vs {force}");
+        let (a, b) = (run.moment.last().unwrap(), own.moment.last().unwrap());
+        assert!((a - b).abs() < 1e-9 * force * probe.width, "{a} vs {b}");
     }
 }
 
@@ -420,7 +429,7 @@ fn neo_hookean_matches_linear_at_small_load_and_departs_at_large() {
             indentation,
             ..s.probes[0]
         };
-        press(&world, &probe).unwrap()
+        press(&world, &probe, Factorisation::Shared).unwrap()
     };
     let unit = 1e-5;
     let linear = pressed(unit);
@@ -815,8 +824,8 @@ fn the_slabs_upper_half_answers_as_the_whole_symmetric_slab() {
 
     let probe = s.probes[0];
     let (a, b) = (
-        press(&half, &probe).unwrap(),
-        press(&whole, &probe).unwrap(),
+        press(&half, &probe, Factorisation::Shared).unwrap(),
+        press(&whole, &probe, Factorisation::Shared).unwrap(),
     );
     let (gap, largest) = marker_gap(&a.markers, &b.markers);
     assert!(
@@ -869,7 +878,14 @@ fn the_neo_hookean_slabs_upper_half_answers_as_the_whole() {
         indentation: 0.001,
         ..s.probes[0]
     };
-    let run = |span| press(&World::covering(&s, span).unwrap(), &probe).unwrap();
+    let run = |span| {
+        press(
+            &World::covering(&s, span).unwrap(),
+            &probe,
+            Factorisation::Shared,
+        )
+        .unwrap()
+    };
     let (a, b) = (run(Span::UpperHalf), run(Span::Whole));
     let (gap, largest) = marker_gap(&a.markers, &b.markers);
     assert!(largest > 1e-5 && gap < 1e-9 * largest, "{gap} of {largest}");
@@ -945,12 +961,14 @@ fn a_finer_marker_mesh_brings_the_markers_near_the_converged_ones() {
         needle_lines: 2,
         mid_plane: 1,
         top_face: 2,
+        probe_edges: 0,
     };
     let reference = SlabGrading {
         faces: 4,
         needle_lines: 3,
         mid_plane: 2,
         top_face: 3,
+        probe_edges: 0,
     };
     let converged = respond(&graded_slab(reference, None)).unwrap();
     let alone = respond(&graded_slab(coarse, None)).unwrap();
@@ -973,4 +991,100 @@ fn a_finer_marker_mesh_brings_the_markers_near_the_converged_ones() {
     for (a, r) in alone.iter().zip(&read_fine) {
         assert_eq!(a.force, r.force, "{}: the force is the placement's", a.id);
     }
+}
+
+/// The small slab's probes alone (no needle, no compression test),
+/// pressed on the slab of `grading` or, with `own`, each on a slab of its
+/// own graded so.
+fn probed_slab(grading: SlabGrading, own: Option<SlabGrading>) -> Scenario {
+    let mut s = plane_and_slab()[1].clone();
+    s.needles.velocities.clear();
+    s.compression = None;
+    s.resolution.slab_grading = Some(grading);
+    s.resolution.probe_grading = own;
+    s
+}
+
+/// Largest marker difference over every state of every probe (m).
+fn probe_marker_gap(a: &[TrialResponse], b: &[TrialResponse]) -> f64 {
+    a.iter()
+        .zip(b)
+        .filter(|(t, _)| t.kind == TrialKind::Probe)
+        .flat_map(|(t, u)| t.markers.iter().zip(&u.markers))
+        .flat_map(|(p, q)| p.iter().zip(q))
+        .map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1]))
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn a_probe_pressed_on_its_own_copy_of_the_slab_is_the_shared_slab_s() {
+    let grading = SlabGrading::DEFAULT;
+    // One probe, so that its own slab has the same grid lines.
+    let one_probe = |own| {
+        let mut s = probed_slab(grading, own);
+        s.probes.truncate(1);
+        s
+    };
+    let shared = respond(&one_probe(None)).unwrap();
+    let own = respond(&one_probe(Some(grading))).unwrap();
+    let largest = shared
+        .iter()
+        .flat_map(|t| t.markers.iter().flatten())
+        .map(|p| p[0].hypot(p[1]))
+        .fold(0.0, f64::max);
+    assert!(largest > 1e-4, "the probe moves the markers: {largest} m");
+    let gap = probe_marker_gap(&shared, &own);
+    assert!(gap < 1e-9 * largest, "markers differ by {gap} m");
+    for (a, b) in shared.iter().zip(&own) {
+        let (fa, fb) = (*a.force.last().unwrap(), *b.force.last().unwrap());
+        assert!((fa - fb).abs() < 1e-9 * fa, "{}: {fa} vs {fb}", a.id);
+        assert!((a.peak_strain - b.peak_strain).abs() < 1e-9 * a.peak_strain);
+    }
+}
+
+#[test]
+fn only_a_linear_slab_presses_its_probes_on_slabs_of_their_own() {
+    use crate::probe_mesh::probe_scenario;
+    let own = Some(SlabGrading {
+        probe_edges: 3,
+        ..SlabGrading::DEFAULT
+    });
+    let mut slab = graded_slab(SlabGrading::DEFAULT, None);
+    slab.probes = small().probes;
+    slab.resolution.probe_grading = own;
+    let probe = slab.probes[0];
+    let alone = probe_scenario(&slab, &probe).unwrap();
+    assert_eq!(alone.resolution.slab_grading, own);
+    assert_eq!(alone.resolution.probe_grading, None);
+    assert_eq!(alone.probes, [probe]);
+    assert!(alone.needles.plan().is_empty() && alone.compression.is_none());
+    assert_eq!(alone.phantom, slab.phantom);
+    assert_eq!(alone.effects, slab.effects);
+    slab.effects.material_nonlinearity = Some(crate::effect::MaterialNonlinearity);
+    assert!(probe_scenario(&slab, &probe).is_none());
+    let mut plane = small();
+    plane.resolution.probe_grading = own;
+    assert!(probe_scenario(&plane, &plane.probes[0]).is_none());
+}
+
+#[test]
+fn a_slab_graded_towards_the_probe_edges_brings_the_probe_markers_near_the_converged_ones() {
+    let coarse = SlabGrading::DEFAULT;
+    let own = SlabGrading {
+        top_face: 1,
+        probe_edges: 3,
+        ..coarse
+    };
+    let reference = SlabGrading {
+        top_face: 2,
+        probe_edges: 5,
+        ..coarse
+    };
+    let converged = respond(&probed_slab(reference, None)).unwrap();
+    let shared = respond(&probed_slab(coarse, None)).unwrap();
+    let pressed_alone = respond(&probed_slab(coarse, Some(own))).unwrap();
+    let before = probe_marker_gap(&shared, &converged);
+    let after = probe_marker_gap(&pressed_alone, &converged);
+    println!("probe markers from the converged ones: {before} m before, {after} m after");
+    assert!(after < 0.3 * before, "{after} m, {before} m before");
 }

@@ -52,6 +52,11 @@ pub struct Discretisation {
     /// those of the mesh the needle was placed on.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub marker_mesh_nodes: Option<usize>,
+    /// Nodes of the slab each probe was pressed on alone
+    /// (`resolution.probe_grading`), in the probes' order; empty when
+    /// they were pressed on the mesh above.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub probe_mesh_nodes: Vec<usize>,
 }
 
 /// True values of one trial.

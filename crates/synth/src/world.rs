@@ -188,6 +188,32 @@ impl<'s> World<'s> {
         NeoHookean::new(&self.body, &pairs, &self.springs, held)
     }
 
+    /// The linear phantom on `day` with the components `pressed` held at
+    /// `value` besides the supports, factorised for this load alone: its
+    /// displacement and the reactions $K u$ (nonzero only where held).
+    pub fn press_linear(
+        &self,
+        day: f64,
+        pressed: &[usize],
+        value: f64,
+        what: &str,
+    ) -> Result<(Vec<f64>, Vec<f64>), SynthError> {
+        let nu = self.scenario.phantom.poisson_ratio;
+        let pairs: Vec<(f64, f64)> = self.moduli(day).into_iter().map(|e| (e, nu)).collect();
+        let materials = Materials::from_parameters(&pairs)?;
+        let stiffness = Stiffness::new(&self.body.stiffness(&materials)?, &self.springs)?;
+        let mut held = self.fixed.clone();
+        let mut prescribed = vec![0.0; held.len()];
+        for &d in pressed {
+            held[d] = true;
+            prescribed[d] = value;
+        }
+        let factorised = Factorised::new(&stiffness, &held, what)?;
+        let u = factorised.solve_prescribed(&stiffness, &prescribed);
+        let reactions = stiffness.multiply(&u);
+        Ok((u, reactions))
+    }
+
     /// The linear stiffness with `moduli` per region, factorised with the
     /// supports held.
     fn linear_system(&self, moduli: &[f64], what: &str) -> Result<LinearSystem, SynthError> {

@@ -75,6 +75,7 @@ fn a_slab_campaign_reads_its_needle_markers_on_its_marker_mesh() {
         needle_lines: 2,
         mid_plane: 1,
         top_face: 2,
+        probe_edges: 0,
     });
     let dir = tempfile::tempdir().unwrap();
     let run = |s: &Scenario, name: &str| {
@@ -104,6 +105,47 @@ fn a_slab_campaign_reads_its_needle_markers_on_its_marker_mesh() {
         }
     }
     assert!(needle_tracks > 0);
+}
+
+/// With `resolution.probe_grading` each probe's tracks and tool samples
+/// come from a slab of its own and every other file stays the same; the
+/// truth file gives each probe slab's size.
+#[test]
+fn a_slab_campaign_presses_its_probes_on_slabs_of_their_own() {
+    let mut shared = small();
+    shared.effects = Effects::none().with(EffectId::OutOfPlane);
+    shared.resolution.layers = 2;
+    let mut own = shared.clone();
+    own.resolution.probe_grading = Some(SlabGrading {
+        probe_edges: 3,
+        ..SlabGrading::DEFAULT
+    });
+    let dir = tempfile::tempdir().unwrap();
+    let run = |s: &Scenario, name: &str| {
+        let bundle = dir.path().join(name);
+        let summary =
+            generate(s, &bundle, &dir.path().join(format!("{name}.ron")), |_| {}).unwrap();
+        (files(&bundle), summary.truth.discretisation)
+    };
+    let (on_shared, mesh) = run(&shared, "shared");
+    let (on_own, own_mesh) = run(&own, "own");
+    assert!(mesh.probe_mesh_nodes.is_empty());
+    assert_eq!(own_mesh.nodes, mesh.nodes);
+    assert_eq!(own_mesh.probe_mesh_nodes.len(), shared.probes.len());
+    assert!(own_mesh.probe_mesh_nodes[0] > mesh.nodes);
+    let names: Vec<&String> = on_shared.iter().map(|f| &f.0).collect();
+    assert_eq!(names, on_own.iter().map(|f| &f.0).collect::<Vec<_>>());
+    let mut probe_files = 0;
+    for ((name, a), (_, b)) in on_shared.iter().zip(&on_own) {
+        let probe_data = name.contains("probe") && !name.ends_with("trial.ron");
+        if probe_data {
+            probe_files += 1;
+            assert_ne!(a, b, "{name}: pressed on the probe's own slab");
+        } else {
+            assert_eq!(a, b, "{name}: not the probe's measurements");
+        }
+    }
+    assert!(probe_files >= 2, "the probe's tracks and tool samples");
 }
 
 #[test]

@@ -158,26 +158,39 @@ fn out_of_range_value_names_the_dotted_field() {
         matches!(e, SynthError::InvalidField { ref field, .. } if field == "effects.layered_stiffness.moduli"),
         "{e}"
     );
-    let mut s = Scenario::paper_default();
-    s.resolution.slab_grading = Some(SlabGrading {
-        mid_plane: SlabGrading::MAX_LEVELS + 1,
-        ..SlabGrading::DEFAULT
-    });
-    let e = s.validate("memory").unwrap_err();
-    assert!(
-        matches!(e, SynthError::InvalidField { ref field, .. } if field == "resolution.slab_grading"),
-        "{e}"
-    );
-    let mut s = Scenario::paper_default();
-    s.resolution.marker_grading = Some(SlabGrading {
-        top_face: SlabGrading::MAX_LEVELS + 1,
-        ..SlabGrading::DEFAULT
-    });
-    let e = s.validate("memory").unwrap_err();
-    assert!(
-        matches!(e, SynthError::InvalidField { ref field, .. } if field == "resolution.marker_grading"),
-        "{e}"
-    );
+    let too_fine = [
+        SlabGrading {
+            mid_plane: SlabGrading::MAX_LEVELS + 1,
+            ..SlabGrading::DEFAULT
+        },
+        SlabGrading {
+            top_face: SlabGrading::MAX_LEVELS + 1,
+            ..SlabGrading::DEFAULT
+        },
+        SlabGrading {
+            probe_edges: SlabGrading::MAX_LEVELS + 1,
+            ..SlabGrading::DEFAULT
+        },
+    ];
+    type SetGrading = fn(&mut Resolution, SlabGrading);
+    let fields: [(&str, SetGrading); 3] = [
+        ("resolution.slab_grading", |r, g| r.slab_grading = Some(g)),
+        ("resolution.marker_grading", |r, g| {
+            r.marker_grading = Some(g)
+        }),
+        ("resolution.probe_grading", |r, g| r.probe_grading = Some(g)),
+    ];
+    for (name, set) in fields {
+        for grading in too_fine {
+            let mut s = Scenario::paper_default();
+            set(&mut s.resolution, grading);
+            let e = s.validate("memory").unwrap_err();
+            assert!(
+                matches!(e, SynthError::InvalidField { ref field, .. } if field == name),
+                "{name}, {grading:?}: {e}"
+            );
+        }
+    }
     let mut s = Scenario::null();
     s.resolution.plane_grading = Some(Resolution::MAX_PLANE_GRADING + 1);
     let e = s.validate("memory").unwrap_err();

@@ -1,0 +1,42 @@
+//! The probes of the 3-D slab pressed on slabs of their own, graded
+//! towards their edges.
+//!
+//! A probe is a rigid flat punch: the strain grows like $r^{-1/2}$ towards
+//! its two edges on the front face, along the whole thickness, and towards
+//! the corners where those edges meet the top face, on which the markers
+//! lie. On the paper default's slab, which is graded towards the faces
+//! and the needle lines but not the probe edges, the first probe's markers
+//! are some 40 um (five times the marker noise) from a slab graded eight
+//! levels towards its edges and three towards the top face
+//! (`docs/truth-world.md`, The 3-D slab, probes). Grading every probe's
+//! edges in the one slab multiplies its grid lines (each level adds two
+//! lines per edge across the whole phantom, and a tensor grid cannot stop
+//! them short), and the needle trials would pay for them. With
+//! `resolution.probe_grading` set, each probe is instead pressed on a slab
+//! of its own graded as that field asks: the scenario's slab with that
+//! probe alone, no needle lines, factorised with the probe's face held
+//! (`probe::Factorisation::Own`). Markers, force and moment are read
+//! there; every other trial stays on the scenario's slab.
+
+use crate::scenario::{ProbeTrial, Scenario};
+
+/// The scenario of the slab `probe` is pressed on, when `scenario` asks
+/// for one: a 3-D slab (`out_of_plane`) of linear material with
+/// `resolution.probe_grading` set. It differs from `scenario` in its slab
+/// grading and in having that probe as its only trial.
+pub(crate) fn probe_scenario(scenario: &Scenario, probe: &ProbeTrial) -> Option<Scenario> {
+    let e = &scenario.effects;
+    let grading = scenario.resolution.probe_grading?;
+    if e.out_of_plane.is_none() || e.material_nonlinearity.is_some() {
+        return None;
+    }
+    let mut own = scenario.clone();
+    own.resolution.slab_grading = Some(grading);
+    own.resolution.probe_grading = None;
+    own.resolution.marker_grading = None;
+    own.probes = vec![*probe];
+    own.needles.velocities.clear();
+    own.compression = None;
+    own.frames = None;
+    Some(own)
+}
