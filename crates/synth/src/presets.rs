@@ -61,10 +61,9 @@ pub(crate) const PAPER_FINE_MARKER_GRADING: SlabGrading = SlabGrading {
 /// The slab each probe of the fine paper default is pressed on alone:
 /// eight levels towards the probe's edges (and the front face), three
 /// towards the top face, four towards the faces and sides. Against a slab
-/// graded once more towards the faces, the top face and the edges, the first two
-/// probes' markers are within a tenth of the marker noise, where the paper
-/// default's slab leaves some 39 um (`docs/truth-world.md`, The 3-D slab,
-/// probes).
+/// graded once more towards each, the first two probes' markers are 0.45
+/// and 0.59 um away, where the paper default's slab leaves 39 and 70 um
+/// (`docs/truth-world.md`, The 3-D slab, session 37).
 pub(crate) const PAPER_FINE_PROBE_GRADING: SlabGrading = SlabGrading {
     faces: 4,
     needle_lines: 0,

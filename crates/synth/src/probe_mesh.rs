@@ -5,18 +5,18 @@
 //! its two edges on the front face, along the whole thickness, and towards
 //! the corners where those edges meet the top face, on which the markers
 //! lie. On the paper default's slab, which is graded towards the faces
-//! and the needle lines but not the probe edges, the first probe's markers
-//! are some 40 um (five times the marker noise) from a slab graded eight
-//! levels towards its edges and three towards the top face
-//! (`docs/truth-world.md`, The 3-D slab, probes). Grading every probe's
+//! and the needle lines but not the probe edges, the first two probes'
+//! markers are 39 and 70 um (4.8 and 8.8 times the marker noise) from
+//! those of a slab graded nine levels towards the probe's edges
+//! (`docs/truth-world.md`, The 3-D slab, session 37). Grading every probe's
 //! edges in the one slab multiplies its grid lines (each level adds two
 //! lines per edge across the whole phantom, and a tensor grid cannot stop
 //! them short), and the needle trials would pay for them. With
 //! `resolution.probe_grading` set, each probe is instead pressed on a slab
 //! of its own graded as that field asks: the scenario's slab with that
 //! probe alone, no needle lines, factorised with the probe's face held
-//! (`probe::Factorisation::Own`). Markers, force and moment are read
-//! there; every other trial stays on the scenario's slab.
+//! (`probe::Factorisation::Own`). Markers, force, moment and peak strain
+//! are read there; every other trial stays on the scenario's slab.
 
 use crate::scenario::{ProbeTrial, Scenario};
 

@@ -190,7 +190,8 @@ impl<'s> World<'s> {
 
     /// The linear phantom on `day` with the components `pressed` held at
     /// `value` besides the supports, factorised for this load alone: its
-    /// displacement and the reactions $K u$ (nonzero only where held).
+    /// displacement and the reactions $K u$ (nonzero only on held
+    /// components).
     pub fn press_linear(
         &self,
         day: f64,
@@ -198,10 +199,7 @@ impl<'s> World<'s> {
         value: f64,
         what: &str,
     ) -> Result<(Vec<f64>, Vec<f64>), SynthError> {
-        let nu = self.scenario.phantom.poisson_ratio;
-        let pairs: Vec<(f64, f64)> = self.moduli(day).into_iter().map(|e| (e, nu)).collect();
-        let materials = Materials::from_parameters(&pairs)?;
-        let stiffness = Stiffness::new(&self.body.stiffness(&materials)?, &self.springs)?;
+        let stiffness = self.stiffness(&self.moduli(day))?;
         let mut held = self.fixed.clone();
         let mut prescribed = vec![0.0; held.len()];
         for &d in pressed {
@@ -217,15 +215,20 @@ impl<'s> World<'s> {
     /// The linear stiffness with `moduli` per region, factorised with the
     /// supports held.
     fn linear_system(&self, moduli: &[f64], what: &str) -> Result<LinearSystem, SynthError> {
-        let nu = self.scenario.phantom.poisson_ratio;
-        let pairs: Vec<(f64, f64)> = moduli.iter().map(|&e| (e, nu)).collect();
-        let materials = Materials::from_parameters(&pairs)?;
-        let stiffness = Stiffness::new(&self.body.stiffness(&materials)?, &self.springs)?;
+        let stiffness = self.stiffness(moduli)?;
         let factorised = Factorised::new(&stiffness, &self.fixed, what)?;
         Ok(LinearSystem {
             stiffness,
             factorised,
         })
+    }
+
+    /// The linear stiffness with `moduli` per region and the springs.
+    fn stiffness(&self, moduli: &[f64]) -> Result<Stiffness, SynthError> {
+        let nu = self.scenario.phantom.poisson_ratio;
+        let pairs: Vec<(f64, f64)> = moduli.iter().map(|&e| (e, nu)).collect();
+        let materials = Materials::from_parameters(&pairs)?;
+        Stiffness::new(&self.body.stiffness(&materials)?, &self.springs)
     }
 
     /// Displacement of every marker (x, y, z; z is zero in plane strain).
