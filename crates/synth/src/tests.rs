@@ -893,12 +893,12 @@ fn the_neo_hookean_slabs_upper_half_answers_as_the_whole() {
     assert!((fa - fb).abs() < 1e-9 * fb, "{fa} vs {fb}");
 }
 
-/// Largest marker difference over every state of every needle trial
+/// Largest marker difference over every state of every trial of `kind`
 /// (m), as vector lengths.
-fn needle_marker_gap(a: &[TrialResponse], b: &[TrialResponse]) -> f64 {
+fn trial_marker_gap(a: &[TrialResponse], b: &[TrialResponse], kind: TrialKind) -> f64 {
     a.iter()
         .zip(b)
-        .filter(|(t, _)| t.kind == TrialKind::Needle)
+        .filter(|(t, _)| t.kind == kind)
         .flat_map(|(t, u)| t.markers.iter().zip(&u.markers))
         .flat_map(|(p, q)| p.iter().zip(q))
         .map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1]))
@@ -924,7 +924,7 @@ fn markers_read_on_a_copy_of_the_placement_mesh_are_the_placement_mesh_s() {
         .flat_map(|t| t.markers.iter().flatten())
         .map(|p| p[0].hypot(p[1]))
         .fold(0.0, f64::max);
-    let gap = needle_marker_gap(&alone, &copied);
+    let gap = trial_marker_gap(&alone, &copied, TrialKind::Needle);
     assert!(largest > 1e-4, "the needle moves the markers: {largest} m");
     // The same loads, solved by back-substitution instead of from the
     // kept columns: equal up to round-off.
@@ -974,9 +974,9 @@ fn a_finer_marker_mesh_brings_the_markers_near_the_converged_ones() {
     let alone = respond(&graded_slab(coarse, None)).unwrap();
     let read_fine = respond(&graded_slab(coarse, Some(fine))).unwrap();
     let fine_alone = respond(&graded_slab(fine, None)).unwrap();
-    let before = needle_marker_gap(&alone, &converged);
-    let after = needle_marker_gap(&read_fine, &converged);
-    let fine_error = needle_marker_gap(&fine_alone, &converged);
+    let before = trial_marker_gap(&alone, &converged, TrialKind::Needle);
+    let after = trial_marker_gap(&read_fine, &converged, TrialKind::Needle);
+    let fine_error = trial_marker_gap(&fine_alone, &converged, TrialKind::Needle);
     // Measured: 27.7 um from the placement mesh, 8.0 um read on the
     // finer one, 5.9 um on the finer mesh alone (the rest is the coarse
     // placement's).
@@ -1005,17 +1005,6 @@ fn probed_slab(grading: SlabGrading, own: Option<SlabGrading>) -> Scenario {
     s
 }
 
-/// Largest marker difference over every state of every probe (m).
-fn probe_marker_gap(a: &[TrialResponse], b: &[TrialResponse]) -> f64 {
-    a.iter()
-        .zip(b)
-        .filter(|(t, _)| t.kind == TrialKind::Probe)
-        .flat_map(|(t, u)| t.markers.iter().zip(&u.markers))
-        .flat_map(|(p, q)| p.iter().zip(q))
-        .map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1]))
-        .fold(0.0, f64::max)
-}
-
 #[test]
 fn a_probe_pressed_on_its_own_copy_of_the_slab_is_the_shared_slab_s() {
     let grading = SlabGrading::DEFAULT;
@@ -1033,7 +1022,7 @@ fn a_probe_pressed_on_its_own_copy_of_the_slab_is_the_shared_slab_s() {
         .map(|p| p[0].hypot(p[1]))
         .fold(0.0, f64::max);
     assert!(largest > 1e-4, "the probe moves the markers: {largest} m");
-    let gap = probe_marker_gap(&shared, &own);
+    let gap = trial_marker_gap(&shared, &own, TrialKind::Probe);
     assert!(gap < 1e-9 * largest, "markers differ by {gap} m");
     for (a, b) in shared.iter().zip(&own) {
         let (fa, fb) = (*a.force.last().unwrap(), *b.force.last().unwrap());
@@ -1083,8 +1072,8 @@ fn a_slab_graded_towards_the_probe_edges_brings_the_probe_markers_near_the_conve
     let converged = respond(&probed_slab(reference, None)).unwrap();
     let shared = respond(&probed_slab(coarse, None)).unwrap();
     let pressed_alone = respond(&probed_slab(coarse, Some(own))).unwrap();
-    let before = probe_marker_gap(&shared, &converged);
-    let after = probe_marker_gap(&pressed_alone, &converged);
+    let before = trial_marker_gap(&shared, &converged, TrialKind::Probe);
+    let after = trial_marker_gap(&pressed_alone, &converged, TrialKind::Probe);
     println!("probe markers from the converged ones: {before} m before, {after} m after");
     assert!(after < 0.3 * before, "{after} m, {before} m before");
 }

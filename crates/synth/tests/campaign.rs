@@ -6,6 +6,7 @@
 use std::path::Path;
 
 use needle_data::{TrialKind, read_bundle};
+use needle_synth::truth::Discretisation;
 use needle_synth::{EffectId, Effects, Scenario, SlabGrading, SynthError, generate, respond};
 
 /// The paper phantom with a coarse mesh, few markers, short trials.
@@ -61,6 +62,33 @@ fn a_campaign_without_insertions_writes_its_probes_alone() {
     }
 }
 
+/// Generates `s` as the bundle `name` in `dir`: its files, and the
+/// discretisation its truth file states.
+fn generated(s: &Scenario, dir: &Path, name: &str) -> (Vec<(String, Vec<u8>)>, Discretisation) {
+    let bundle = dir.join(name);
+    let summary = generate(s, &bundle, &dir.join(format!("{name}.ron")), |_| {}).unwrap();
+    (files(&bundle), summary.truth.discretisation)
+}
+
+/// The files of two bundles with the same file names whose contents
+/// differ, and the names of the files `expected` selects.
+fn differing_and_expected<'a>(
+    a: &'a [(String, Vec<u8>)],
+    b: &[(String, Vec<u8>)],
+    expected: impl Fn(&str) -> bool,
+) -> (Vec<&'a str>, Vec<&'a str>) {
+    let names: Vec<&str> = a.iter().map(|f| f.0.as_str()).collect();
+    assert_eq!(names, b.iter().map(|f| f.0.as_str()).collect::<Vec<_>>());
+    let differing = a
+        .iter()
+        .zip(b)
+        .filter(|(x, y)| x.1 != y.1)
+        .map(|(x, _)| x.0.as_str())
+        .collect();
+    let expected = names.into_iter().filter(|n| expected(n)).collect();
+    (differing, expected)
+}
+
 /// With `resolution.marker_grading` the needle trials' tracks come from
 /// the finer mesh and the probes' stay on the placement mesh; the truth
 /// file says how large the finer mesh was.
@@ -78,33 +106,19 @@ fn a_slab_campaign_reads_its_needle_markers_on_its_marker_mesh() {
         probe_edges: 0,
     });
     let dir = tempfile::tempdir().unwrap();
-    let run = |s: &Scenario, name: &str| {
-        let bundle = dir.path().join(name);
-        let summary =
-            generate(s, &bundle, &dir.path().join(format!("{name}.ron")), |_| {}).unwrap();
-        (files(&bundle), summary.truth.discretisation)
-    };
-    let (alone, mesh) = run(&placed, "alone");
-    let (finer, finer_mesh) = run(&read_finer, "finer");
+    let (alone, mesh) = generated(&placed, dir.path(), "alone");
+    let (finer, finer_mesh) = generated(&read_finer, dir.path(), "finer");
     assert_eq!(mesh.marker_mesh_nodes, None);
     assert_eq!(
         (finer_mesh.nodes, finer_mesh.elements),
         (mesh.nodes, mesh.elements)
     );
     assert!(finer_mesh.marker_mesh_nodes.unwrap() > 2 * mesh.nodes);
-    let names: Vec<&String> = alone.iter().map(|f| &f.0).collect();
-    assert_eq!(names, finer.iter().map(|f| &f.0).collect::<Vec<_>>());
-    let mut needle_tracks = 0;
-    for ((name, a), (_, b)) in alone.iter().zip(&finer) {
-        let needle_tracks_file = name.contains("needle") && name.contains("markers");
-        if needle_tracks_file {
-            needle_tracks += 1;
-            assert_ne!(a, b, "{name}: read on the finer mesh");
-        } else {
-            assert_eq!(a, b, "{name}: not the needle's markers");
-        }
-    }
-    assert!(needle_tracks > 0);
+    let (differing, needle_tracks) = differing_and_expected(&alone, &finer, |name| {
+        name.contains("needle") && name.contains("markers")
+    });
+    assert!(!needle_tracks.is_empty());
+    assert_eq!(differing, needle_tracks, "only the needle's tracks change");
 }
 
 /// With `resolution.probe_grading` each probe's tracks and tool samples
@@ -121,31 +135,20 @@ fn a_slab_campaign_presses_its_probes_on_slabs_of_their_own() {
         ..SlabGrading::DEFAULT
     });
     let dir = tempfile::tempdir().unwrap();
-    let run = |s: &Scenario, name: &str| {
-        let bundle = dir.path().join(name);
-        let summary =
-            generate(s, &bundle, &dir.path().join(format!("{name}.ron")), |_| {}).unwrap();
-        (files(&bundle), summary.truth.discretisation)
-    };
-    let (on_shared, mesh) = run(&shared, "shared");
-    let (on_own, own_mesh) = run(&own, "own");
+    let (on_shared, mesh) = generated(&shared, dir.path(), "shared");
+    let (on_own, own_mesh) = generated(&own, dir.path(), "own");
     assert!(mesh.probe_mesh_nodes.is_empty());
     assert_eq!(own_mesh.nodes, mesh.nodes);
     assert_eq!(own_mesh.probe_mesh_nodes.len(), shared.probes.len());
     assert!(own_mesh.probe_mesh_nodes[0] > mesh.nodes);
-    let names: Vec<&String> = on_shared.iter().map(|f| &f.0).collect();
-    assert_eq!(names, on_own.iter().map(|f| &f.0).collect::<Vec<_>>());
-    let mut probe_files = 0;
-    for ((name, a), (_, b)) in on_shared.iter().zip(&on_own) {
-        let probe_data = name.contains("probe") && !name.ends_with("trial.ron");
-        if probe_data {
-            probe_files += 1;
-            assert_ne!(a, b, "{name}: pressed on the probe's own slab");
-        } else {
-            assert_eq!(a, b, "{name}: not the probe's measurements");
-        }
-    }
-    assert!(probe_files >= 2, "the probe's tracks and tool samples");
+    let (differing, probe_data) = differing_and_expected(&on_shared, &on_own, |name| {
+        name.contains("probe") && !name.ends_with("trial.ron")
+    });
+    assert!(probe_data.len() >= 2, "the probe's tracks and tool samples");
+    assert_eq!(
+        differing, probe_data,
+        "only the probe's measurements change"
+    );
 }
 
 #[test]
