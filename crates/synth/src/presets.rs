@@ -61,8 +61,8 @@ pub(crate) const PAPER_FINE_MARKER_GRADING: SlabGrading = SlabGrading {
 /// The slab each probe of the fine paper default is pressed on alone:
 /// eight levels towards the probe's edges (and the front face), three
 /// towards the top face, four towards the faces and sides. Against a slab
-/// graded once more towards each, the first two probes' markers are 0.45
-/// and 0.59 um away, where the paper default's slab leaves 39 and 70 um
+/// graded once more towards each, the four probes' markers are 0.45 to
+/// 0.61 um away, where the paper default's slab leaves 39 to 77 um
 /// (`docs/truth-world.md`, The 3-D slab, session 37).
 pub(crate) const PAPER_FINE_PROBE_GRADING: SlabGrading = SlabGrading {
     faces: 4,

@@ -5,8 +5,8 @@
 //! its two edges on the front face, along the whole thickness, and towards
 //! the corners where those edges meet the top face, on which the markers
 //! lie. On the paper default's slab, which is graded towards the faces
-//! and the needle lines but not the probe edges, the first two probes'
-//! markers are 39 and 70 um (4.8 and 8.8 times the marker noise) from
+//! and the needle lines but not the probe edges, the four probes'
+//! markers are 39 to 77 um (4.8 to 9.7 times the marker noise) from
 //! those of a slab graded nine levels towards the probe's edges
 //! (`docs/truth-world.md`, The 3-D slab, session 37). Grading every probe's
 //! edges in the one slab multiplies its grid lines (each level adds two
