@@ -321,10 +321,8 @@ fn probe_alone(base: &Scenario, k: usize, own: Option<SlabGrading>) -> (Vec<[f64
 
 /// The paper default's four probes (x = 15, 30, 45 and 60 mm, 3 mm
 /// deep), on the paper default's slab and on the fine paper default's
-/// own probe slabs,
-/// against slabs graded once more towards the faces, the top face and the
-/// probe's edges.
-/// Asserts the fine paper default's within a tenth of the marker noise at
+/// own probe slabs, against slabs graded once more towards the faces, the
+/// top face and the probe's edges. Asserts the fine paper default's within a tenth of the marker noise at
 /// every marker; prints the paper default's too, over every marker and
 /// beyond one phantom thickness of the contact (the markers the
 /// diagnosis fits), there also at the same force (the diagnosis loads
@@ -367,14 +365,14 @@ fn the_fine_paper_default_s_probes_are_within_a_tenth_of_the_marker_noise() {
             "| slab | largest (um) | worst marker | rms (um) | beyond 7.5 mm (um) | the same at the same force (um) | force (mN) |"
         );
         println!("|---|---|---|---|---|---|---|");
-        let rows = [
+        let slabs = [
             ("the paper default's", probe_alone(&paper, k, None)),
             (
                 "the fine paper default's own",
                 probe_alone(&fine, k, Some(own)),
             ),
         ];
-        for (name, (markers, f)) in &rows {
+        for (name, (markers, f)) in &slabs {
             let (largest, rms, column, row) = compare(markers, &converged, columns);
             let (far_largest, ..) = compare(&pick(markers), &pick(&converged), far.len());
             // A model loaded by the measured force (the diagnosis's) sees
@@ -395,7 +393,7 @@ fn the_fine_paper_default_s_probes_are_within_a_tenth_of_the_marker_noise() {
                 force * 1e3
             );
         }
-        worst_fine = worst_fine.max(compare(&rows[1].1.0, &converged, columns).0);
+        worst_fine = worst_fine.max(compare(&slabs[1].1.0, &converged, columns).0);
     }
     assert!(
         worst_fine < 0.1 * sigma,
