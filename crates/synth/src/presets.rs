@@ -209,11 +209,11 @@ impl Scenario {
     /// [`PAPER_FINE_MARKER_GRADING`] (`resolution.marker_grading`,
     /// `marker_mesh`), each probe pressed on a slab of its own graded as
     /// [`PAPER_FINE_PROBE_GRADING`] (`resolution.probe_grading`,
-    /// `probe_mesh`). On the convergence test's insertions its markers
-    /// are within a tenth of the marker noise of the reference except just
-    /// after the entry of one with the tip's cutting force, where the
-    /// placement leaves about a quarter of it; its probes' are within a
-    /// tenth; it takes more than ten times the paper default's time and
+    /// `probe_mesh`). On the convergence test's null insertion its markers
+    /// are within a tenth of the marker noise of the reference; on the one
+    /// with the tip's cutting force the placement leaves about a quarter of
+    /// it just after the entry and a little over a tenth at three deeper
+    /// states; its probes' are within a tenth; it takes more than ten times the paper default's time and
     /// memory to generate (`docs/truth-world.md`, The 3-D slab).
     pub fn paper_default_fine() -> Self {
         let paper = Self::paper_default();
