@@ -13,7 +13,7 @@ use crate::camera::TrueCamera;
 use crate::effect::material_nonlinearity::uniaxial_nominal_stress;
 use crate::error::SynthError;
 use crate::frames::{Staging, write_calibration};
-use crate::marker_mesh::{marker_scenario, read_markers_on};
+use crate::marker_mesh::{marker_scenario, settle_on};
 use crate::needle::{NeedleRun, insert};
 use crate::probe::{Factorisation, ProbeRun, press};
 use crate::probe_mesh::probe_scenario;
@@ -38,7 +38,8 @@ pub struct Summary {
     /// Degrees of freedom of the truth.
     pub dofs: usize,
     /// Right-hand sides back-substituted for the needle insertions (kept
-    /// columns and full solves), or Newton solves on a nonlinear phantom.
+    /// columns and full solves, and those of the marker mesh when the needle
+    /// is settled there), or Newton solves on a nonlinear phantom.
     pub needle_solves: usize,
     /// Wall time of the whole generation (s).
     pub seconds: f64,
@@ -446,8 +447,8 @@ fn needle_plans(scenario: &Scenario) -> Vec<crate::scenario::NeedlePlan> {
     plans
 }
 
-/// The needle trials placed on `world`, their markers read on
-/// `marker_world` when the scenario has one (`marker_mesh`).
+/// The needle trials placed on `world`, and settled on `marker_world`
+/// when the scenario has one (`marker_mesh`); with the linear solves made.
 fn run_needles(
     world: &World,
     marker_world: Option<&World>,
@@ -475,13 +476,13 @@ fn run_needles(
         scenario.needles.depth,
         scenario.resolution.depth_step,
     )?;
+    let mut solves = runs.iter().map(|r| r.solves).sum();
     if let Some(fine) = marker_world {
-        read_markers_on(fine, &mut runs)?;
+        solves += settle_on(fine, &mut runs)?;
     }
     progress(Stage::Needles {
         done: days.len(),
         total: days.len(),
     });
-    let solves = runs.iter().map(|r| r.solves).sum();
     Ok((runs, solves))
 }

@@ -34,9 +34,11 @@
 //!   a needle insertion keeps the columns of $K^{-1}$ for the dofs its
 //!   line loads, so that its consistency iterations need no
 //!   back-substitution ([`needle`]), and the insertions run in parallel.
-//!   With `resolution.marker_grading` the loads the needle was placed with
-//!   are solved again, state by state, on a finer slab, where the needle
-//!   trials' markers are read (`marker_mesh`; the fine paper default).
+//!   With `resolution.marker_grading` the consistency iteration of every
+//!   state goes on from the loads it found, on a finer slab, until the
+//!   needle's placement there is consistent too, and the needle trials'
+//!   markers and base force are read there (`marker_mesh`; the fine paper
+//!   default).
 //!   With `resolution.probe_grading` each probe is pressed on a slab of
 //!   its own, graded towards its edges and factorised with its face held
 //!   (`probe_mesh`).

@@ -1,43 +1,49 @@
-//! The needle trials' markers of the 3-D slab read on a second, finer
-//! mesh than the one the needle is placed on.
+//! The needle trials of the 3-D slab settled on a second, finer mesh
+//! than the one their consistency iteration starts on, and their markers
+//! read there.
 //!
 //! On the paper default's slab the final markers of a 1 mm/s insertion
 //! are 4.5 um (0.57 of the marker noise) from the convergence test's
-//! reference, while the needle's placement on that slab (the material
-//! points its shaft load acts at, found by the tip's consistency
-//! iteration) is nearly converged already: the same loads applied to the
-//! reference mesh give markers 0.5 um from the reference's own. The error
-//! is the field's, not the placement's (`docs/truth-world.md`, The 3-D
-//! slab). That holds for the null insertion; with the tip's cutting force
-//! the markers just after the entry stay 1.8 to 2.5 um off on the
-//! placement meshes tried, so the finer mesh helps most once the needle
-//! is deeper. With `resolution.marker_grading` set, the truth places the
-//! needle on the slab of `resolution.slab_grading`, whose kept columns of
-//! $K^{-1}$ make the consistency iteration cheap, and solves the field of
-//! every state's placed load on the slab of `marker_grading`, where the
-//! markers are read:
-//! $$m(d) = M_f\,K_f^{-1} f_f(d),$$
-//! $f_f(d)$ the state's point forces at their material points spread to
-//! the finer mesh's nodes. The base force is the load's integral and needs
-//! no field.
+//! reference. Most of that is the field's error, not the placement's
+//! (the same loads applied to the reference mesh give markers 0.5 um
+//! from the reference's own), so up to session 37 the truth only read
+//! the markers of the placed load on the finer mesh. That left the
+//! placement's own error, which is largest just after the entry when the
+//! tip's cutting force sits next to the free front face: 1.8 um on the
+//! fine paper default's placement mesh, more than a micrometre from one
+//! placement mesh to the next with no steady trend (`docs/truth-world.md`,
+//! The 3-D slab).
 //!
-//! Every state is solved on the finer mesh. Solving every fifth and
-//! reading the correction $m_f - m_c$ between them by cubics does not do:
-//! the placement mesh's error jumps as the loaded points cross its
-//! elements, and the correction read so was 1.7 um off at some states
-//! (every second state: 0.6 um). Probes, strains and the tip's material
-//! point stay those of the placement mesh.
+//! So with `resolution.marker_grading` set, the truth places the needle
+//! on the slab of `resolution.slab_grading` first, where the kept columns
+//! of $K^{-1}$ make the consistency iteration cheap, and then goes on
+//! with the same iteration on the slab of `marker_grading`, from the
+//! loads found (their material points and forces) until the placement on
+//! that slab is consistent: every state $d$ satisfies
+//! $$X_j + u_f(X_j) = p_j(d),\qquad u_f = K_f^{-1} f_f(X, d),$$
+//! on the finer mesh, to [`crate::needle::CONSISTENCY_TOLERANCE`]. The
+//! states are independent, so the iterations of up to
+//! [`SOLVE_BLOCK`] of them share each back-substitution; the fields are
+//! full vectors of the finer mesh, kept only while their state is open.
+//! Markers, entry, base force, loads and the last state's tip material
+//! point are those of the finer mesh; probes and strains stay those of
+//! the placement mesh.
+//!
+//! Every state is solved on the finer mesh: reading the correction
+//! $m_f - m_c$ between every fifth state by cubics was 1.7 um off at some
+//! states, because the placement mesh's error jumps as the loaded points
+//! cross its elements (every second state: 0.6 um).
 
 use rayon::prelude::*;
 
 use crate::error::SynthError;
-use crate::needle::NeedleRun;
+use crate::needle::{NeedleRun, Placement, Rim, StateIteration, material_point, place};
 use crate::scenario::Scenario;
-use crate::world::World;
+use crate::world::{Response, World};
 
-/// Right-hand sides per back-substitution of the finer mesh: blocks are
-/// solved in parallel, and each block's loads and fields (full vectors of
-/// the finer mesh) are dropped once its markers are read.
+/// States whose iterations share a back-substitution of the finer mesh:
+/// blocks are solved in parallel, and each state's fields (full vectors of
+/// the finer mesh) are dropped once it is settled.
 const SOLVE_BLOCK: usize = 32;
 
 /// The scenario of the marker mesh, when `scenario` has one: a 3-D slab
@@ -55,11 +61,22 @@ pub(crate) fn marker_scenario(scenario: &Scenario) -> Option<Scenario> {
     Some(fine)
 }
 
-/// Replaces the marker displacements of every state of `runs` (placed on
-/// another mesh of the same slab) by those of `fine` under the same
-/// loads.
-pub(crate) fn read_markers_on(fine: &World, runs: &mut [NeedleRun]) -> Result<(), SynthError> {
-    let body = &fine.body;
+/// What a state settled on the finer mesh records.
+struct Settled {
+    markers: Vec<[f64; 3]>,
+    entry: f64,
+    force: f64,
+    loads: Vec<([f64; 3], f64)>,
+    /// The tip's material point, read on the last state only.
+    tip_material: Option<[f64; 3]>,
+}
+
+/// Settles every state of `runs` (placed on another mesh of the same
+/// slab) on `fine`: the consistency iteration goes on from their loads
+/// until their placement on `fine` is consistent, and their markers,
+/// entry, base force, loads and the last state's tip material point are
+/// replaced by those on `fine`. Returns the back-substitutions made.
+pub(crate) fn settle_on(fine: &World, runs: &mut [NeedleRun]) -> Result<usize, SynthError> {
     let mut days: Vec<f64> = runs.iter().map(|r| r.plan.day).collect();
     days.sort_by(f64::total_cmp);
     days.dedup();
@@ -73,37 +90,96 @@ pub(crate) fn read_markers_on(fine: &World, runs: &mut [NeedleRun]) -> Result<()
         .flat_map(|r| (1..runs[r].depths.len()).map(move |k| (r, k)))
         .collect();
     jobs.sort_by(|a, b| runs[a.0].plan.day.total_cmp(&runs[b.0].plan.day));
-    let read_block = |block: &[(usize, usize)]| -> Result<Vec<Vec<[f64; 3]>>, SynthError> {
-        let loads: Vec<Vec<f64>> = block
-            .iter()
-            .map(|&(r, k)| {
-                let mut f = vec![0.0; body.dof_count()];
-                for &(point, force) in &runs[r].loads[k] {
-                    let at = body
-                        .locate(point)
-                        .expect("the two meshes cover the same slab");
-                    body.add_point_force(&at, [0.0, force, 0.0], &mut f);
-                }
-                f
-            })
-            .collect();
-        let day = days.partition_point(|&d| d < runs[block[0].0].plan.day);
-        let fields = responses[day].solve(body, &loads, &[])?;
-        Ok(fields
-            .iter()
-            .map(|u| fine.marker_displacements(u))
-            .collect())
-    };
-    let readings: Vec<Vec<[f64; 3]>> = jobs
+    let settled: Vec<(Vec<Settled>, usize)> = jobs
         .par_chunk_by(|a, b| runs[a.0].plan.day == runs[b.0].plan.day)
         .flat_map(|same_day| same_day.par_chunks(SOLVE_BLOCK))
-        .map(read_block)
-        .collect::<Result<Vec<_>, _>>()?
-        .into_iter()
-        .flatten()
-        .collect();
-    for (&(r, k), markers) in jobs.iter().zip(readings) {
-        runs[r].markers[k] = markers;
+        .map(|block| {
+            let day = days.partition_point(|&d| d < runs[block[0].0].plan.day);
+            settle_block(fine, &responses[day], runs, block)
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut solves = 0;
+    let states = settled.into_iter().flat_map(|(states, block_solves)| {
+        solves += block_solves;
+        states
+    });
+    for (&(r, k), state) in jobs.iter().zip(states) {
+        let run = &mut runs[r];
+        run.markers[k] = state.markers;
+        run.entry[k] = state.entry;
+        run.force[k] = state.force;
+        run.loads[k] = state.loads;
+        if let Some(tip) = state.tip_material {
+            run.tip_material = tip;
+        }
     }
-    Ok(())
+    Ok(solves)
+}
+
+/// Settles the states `block` (run, state) of one day on `fine`, all
+/// iterations of the block's open states in one back-substitution;
+/// returns them and the number of right-hand sides solved.
+fn settle_block(
+    fine: &World,
+    response: &Response,
+    runs: &[NeedleRun],
+    block: &[(usize, usize)],
+) -> Result<(Vec<Settled>, usize), SynthError> {
+    let body = &fine.body;
+    let rim = Rim::new(body, fine.scenario.needles.radius);
+    let shaft_step = fine.scenario.resolution.shaft_step;
+    let mut states: Vec<StateIteration> = block
+        .iter()
+        .map(|&(r, k)| {
+            let run = &runs[r];
+            let placed = Placement::on(body, run.entry[k], &run.loads[k]);
+            StateIteration::from_placement(run.depths[k], placed)
+        })
+        .collect();
+    let mut settled: Vec<Option<Settled>> = block.iter().map(|_| None).collect();
+    let mut open: Vec<usize> = (0..block.len()).collect();
+    let mut solves = 0;
+    while !open.is_empty() {
+        let loads: Vec<Vec<f64>> = open.iter().map(|&i| states[i].placed.loads(body)).collect();
+        solves += loads.len();
+        let fields = response.solve(body, &loads, &[])?;
+        let mut still_open = Vec::new();
+        for (&i, u) in open.iter().zip(fields) {
+            let (r, k) = block[i];
+            let run = &runs[r];
+            let tip = run.depths[k];
+            let next = place(body, &rim, run, tip, &u, shaft_step);
+            let state = &mut states[i];
+            let consistent = state
+                .advance(body, &rim, run, &u, &next, shaft_step)
+                .map_err(|e| {
+                    e.during(|| {
+                        format!(
+                            "the needle on the line x = {} m at {tip} m deep, on the marker mesh",
+                            run.plan.line
+                        )
+                    })
+                })?;
+            if !consistent {
+                still_open.push(i);
+                continue;
+            }
+            let placed = &state.placed;
+            let last = k + 1 == run.depths.len();
+            settled[i] = Some(Settled {
+                markers: fine.marker_displacements(&u),
+                entry: placed.entry,
+                force: placed.force(),
+                loads: placed.points.iter().map(|p| (p.0, p.1)).collect(),
+                tip_material: last
+                    .then(|| material_point(body, &rim, [run.plan.line, tip, 0.0], &u)),
+            });
+        }
+        open = still_open;
+    }
+    let settled = settled
+        .into_iter()
+        .map(|s| s.expect("every state of the block settled"))
+        .collect();
+    Ok((settled, solves))
 }

@@ -271,7 +271,7 @@ fn insert_one(
     let last = depths.len() - 1;
     for (k, &tip) in depths.iter().enumerate().skip(1) {
         // The guess: the displacement extrapolated from the last two states.
-        let mut guess: Vec<f64> = match previous.as_slice() {
+        let guess: Vec<f64> = match previous.as_slice() {
             [.., a, b] => {
                 let d = &run.depths[run.depths.len() - 2..];
                 let ratio = (tip - d[1]) / (d[1] - d[0]);
@@ -280,27 +280,16 @@ fn insert_one(
             [.., b] => b.clone(),
             [] => vec![0.0; dofs],
         };
-        let mut placed = place(body, &rim, &run, tip, &guess, shaft_step);
-        let mut mixing = Mixing::default();
-        let mut largest_move = f64::INFINITY;
-        let mut iteration = 0;
+        let mut state = StateIteration::from_guess(body, &rim, &run, tip, guess, shaft_step);
         let solved = loop {
-            if iteration == MAX_CONSISTENCY_ITERATIONS {
-                return Err(SynthError::NoConvergence {
-                    what: format!("the needle tip consistency iteration at depth {tip} m"),
-                    residual: largest_move,
-                    iterations: iteration,
-                });
-            }
-            iteration += 1;
             let (solved, next) = solver
                 .solve_and_place(
                     world,
                     &rim,
                     &run,
                     tip,
-                    &placed,
-                    &guess,
+                    &state.placed,
+                    &state.guess,
                     shaft_step,
                     &mut solves,
                 )
@@ -309,15 +298,11 @@ fn insert_one(
                         format!("the needle on the line x = {} m at {tip} m deep", plan.line)
                     })
                 })?;
-            largest_move = next.moved_from(&placed);
-            if largest_move < CONSISTENCY_TOLERANCE {
-                // Keep the placement that was applied, so that the field
-                // answers exactly the recorded load.
+            if state.advance(body, &rim, &run, &solved.u, &next, shaft_step)? {
                 break solved;
             }
-            guess = mixing.next(std::mem::take(&mut guess), solved.u);
-            placed = place(body, &rim, &run, tip, &guess, shaft_step);
         };
+        let placed = state.placed;
         run.depths.push(tip);
         run.markers.push(solved.markers);
         run.entry.push(placed.entry);
@@ -353,6 +338,90 @@ fn insert_one(
             Solver::Full(_) => 0,
         };
     Ok(run)
+}
+
+/// The consistency iteration of one state, solve by solve: the caller
+/// solves the load of `placed` and hands the field and its placement to
+/// [`StateIteration::advance`], until that accepts `placed`.
+pub(crate) struct StateIteration {
+    tip: f64,
+    /// The field that placed the loads of `placed`; empty when they were
+    /// placed otherwise (on another mesh of the slab).
+    guess: Vec<f64>,
+    /// The loads applied next.
+    pub placed: Placement,
+    mixing: Mixing,
+    iterations: usize,
+}
+
+impl StateIteration {
+    /// The iteration at tip depth `tip` from the loads placed by `guess`.
+    pub fn from_guess(
+        body: &Body,
+        rim: &Rim,
+        run: &NeedleRun,
+        tip: f64,
+        guess: Vec<f64>,
+        shaft_step: f64,
+    ) -> Self {
+        let placed = place(body, rim, run, tip, &guess, shaft_step);
+        Self {
+            tip,
+            guess,
+            placed,
+            mixing: Mixing::default(),
+            iterations: 0,
+        }
+    }
+
+    /// The iteration at tip depth `tip` from loads placed already.
+    pub fn from_placement(tip: f64, placed: Placement) -> Self {
+        Self {
+            tip,
+            guess: Vec::new(),
+            placed,
+            mixing: Mixing::default(),
+            iterations: 0,
+        }
+    }
+
+    /// Takes the field `u` that the load of `placed` caused, and `next`,
+    /// the placement it gives: true when that differs from `placed` by
+    /// less than [`CONSISTENCY_TOLERANCE`] (`placed` is then the state's),
+    /// otherwise places the next loads by the mixed field.
+    pub fn advance(
+        &mut self,
+        body: &Body,
+        rim: &Rim,
+        run: &NeedleRun,
+        u: &[f64],
+        next: &Placement,
+        shaft_step: f64,
+    ) -> Result<bool, SynthError> {
+        self.iterations += 1;
+        let largest_move = next.moved_from(&self.placed);
+        if largest_move < CONSISTENCY_TOLERANCE {
+            return Ok(true);
+        }
+        if self.iterations == MAX_CONSISTENCY_ITERATIONS {
+            return Err(SynthError::NoConvergence {
+                what: format!(
+                    "the needle tip consistency iteration at depth {} m",
+                    self.tip
+                ),
+                residual: largest_move,
+                iterations: self.iterations,
+            });
+        }
+        self.guess = if self.guess.is_empty() {
+            u.to_vec()
+        } else {
+            self.mixing
+                .next(std::mem::take(&mut self.guess), u.to_vec())
+        };
+        self.placed = place(body, rim, run, self.tip, &self.guess, shaft_step);
+        Ok(false)
+    }
 }
 
 /// Anderson mixing of depth one for the consistency iteration of one state
@@ -399,20 +468,44 @@ impl Mixing {
 }
 
 /// The loaded material points of one state for one displacement field.
-struct Placement {
-    entry: f64,
-    points: Vec<([f64; 3], f64, Location)>,
+pub(crate) struct Placement {
+    /// Spatial y of the entry point (m).
+    pub entry: f64,
+    /// The loaded material points, their forces along +y (N) and where
+    /// they lie in the mesh.
+    pub points: Vec<([f64; 3], f64, Location)>,
     /// Every element the displacement was read in: the loaded points' and
     /// the entry's rims.
     read: Vec<usize>,
 }
 
 impl Placement {
-    fn force(&self) -> f64 {
+    /// The loads `points` (material points and forces along +y) of a state
+    /// whose entry is at `entry`, placed on another mesh of the same slab,
+    /// located on `body`.
+    pub fn on(body: &Body, entry: f64, points: &[([f64; 3], f64)]) -> Self {
+        let points: Vec<_> = points
+            .iter()
+            .map(|&(x, force)| {
+                let at = body.locate(x).expect("the two meshes cover the same slab");
+                (x, force, at)
+            })
+            .collect();
+        let read = points.iter().map(|p| p.2.element).collect();
+        Self {
+            entry,
+            points,
+            read,
+        }
+    }
+
+    /// Force at the base, the integral of the shaft load (N).
+    pub fn force(&self) -> f64 {
         self.points.iter().map(|p| p.1).sum()
     }
 
-    fn loads(&self, body: &Body) -> Vec<f64> {
+    /// The load vector of the points.
+    pub fn loads(&self, body: &Body) -> Vec<f64> {
         let mut f = vec![0.0; body.dof_count()];
         for (_, force, at) in &self.points {
             body.add_point_force(at, [0.0, *force, 0.0], &mut f);
@@ -438,7 +531,7 @@ impl Placement {
 
 /// Where the shaft load of `run` acts at tip depth `tip` if the phantom
 /// is displaced by `u`.
-fn place(
+pub(crate) fn place(
     body: &Body,
     rim: &Rim,
     run: &NeedleRun,
@@ -493,7 +586,7 @@ fn place(
 /// needle's material line stays in the mid-plane by the slab's symmetry
 /// (the mesh's small asymmetry would otherwise make z hop between the
 /// elements above and below the loaded plane).
-fn material_point(body: &Body, rim: &Rim, p: [f64; 3], u: &[f64]) -> [f64; 3] {
+pub(crate) fn material_point(body: &Body, rim: &Rim, p: [f64; 3], u: &[f64]) -> [f64; 3] {
     let mut x = p;
     for _ in 0..50 {
         clamp_inside(body, &mut x);

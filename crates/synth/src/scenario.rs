@@ -92,12 +92,13 @@ pub struct Resolution {
     /// convergence study sets it; a campaign need not.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub plane_grading: Option<usize>,
-    /// Grading of a second, finer slab mesh on which the needle trials'
-    /// markers are solved (3-D linear truth only; ignored by the
-    /// plane-strain and neo-Hookean truths): the needle is placed on the
-    /// slab of `slab_grading`, and the load it carries at every state is
-    /// applied to this mesh, where the markers are read (`marker_mesh`).
-    /// Absent, they are read on the placement mesh.
+    /// Grading of a second, finer slab mesh on which the needle trials
+    /// are settled (3-D linear truth only; ignored by the plane-strain and
+    /// neo-Hookean truths): the needle is placed on the slab of
+    /// `slab_grading` first, and every state's consistency iteration goes
+    /// on from the loads found there on this mesh, where the markers and
+    /// the base force are read (`marker_mesh`). Absent, the placement
+    /// mesh's are kept.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub marker_grading: Option<SlabGrading>,
     /// Grading of the slab each probe is pressed on alone (3-D linear

@@ -905,7 +905,7 @@ fn trial_marker_gap(a: &[TrialResponse], b: &[TrialResponse], kind: TrialKind) -
         .fold(0.0, f64::max)
 }
 
-/// The small slab graded as `grading`, its markers read on `markers`.
+/// The small slab graded as `grading`, its needle settled on `markers`.
 fn graded_slab(grading: SlabGrading, markers: Option<SlabGrading>) -> Scenario {
     let mut s = plane_and_slab()[1].clone();
     s.probes.clear();
@@ -915,7 +915,7 @@ fn graded_slab(grading: SlabGrading, markers: Option<SlabGrading>) -> Scenario {
 }
 
 #[test]
-fn markers_read_on_a_copy_of_the_placement_mesh_are_the_placement_mesh_s() {
+fn a_needle_settled_on_a_copy_of_its_placement_mesh_is_the_placement_mesh_s() {
     let grading = SlabGrading::DEFAULT;
     let alone = respond(&graded_slab(grading, None)).unwrap();
     let copied = respond(&graded_slab(grading, Some(grading))).unwrap();
@@ -927,7 +927,7 @@ fn markers_read_on_a_copy_of_the_placement_mesh_are_the_placement_mesh_s() {
     let gap = trial_marker_gap(&alone, &copied, TrialKind::Needle);
     assert!(largest > 1e-4, "the needle moves the markers: {largest} m");
     // The same loads, solved by back-substitution instead of from the
-    // kept columns: equal up to round-off.
+    // kept columns: equal up to round-off, and consistent at once.
     assert!(gap < 1e-9 * largest, "markers differ by {gap} m");
     for (a, c) in alone.iter().zip(&copied) {
         assert_eq!(a.force, c.force, "{}: the force is the placement's", a.id);
@@ -953,8 +953,12 @@ fn only_a_linear_slab_reads_its_markers_on_a_marker_mesh() {
     assert!(marker_scenario(&plane).is_none());
 }
 
+/// With `resolution.marker_grading` the needle placed on the coarse mesh
+/// goes on to a consistent placement on the finer one: the finer mesh's
+/// own insertion, to the consistency tolerance, and nearer the converged
+/// markers than the coarse mesh's.
 #[test]
-fn a_finer_marker_mesh_brings_the_markers_near_the_converged_ones() {
+fn a_needle_settled_on_a_finer_mesh_is_that_mesh_s_own() {
     let coarse = SlabGrading::DEFAULT;
     let fine = SlabGrading {
         faces: 3,
@@ -972,24 +976,35 @@ fn a_finer_marker_mesh_brings_the_markers_near_the_converged_ones() {
     };
     let converged = respond(&graded_slab(reference, None)).unwrap();
     let alone = respond(&graded_slab(coarse, None)).unwrap();
-    let read_fine = respond(&graded_slab(coarse, Some(fine))).unwrap();
+    let settled = respond(&graded_slab(coarse, Some(fine))).unwrap();
     let fine_alone = respond(&graded_slab(fine, None)).unwrap();
     let before = trial_marker_gap(&alone, &converged, TrialKind::Needle);
-    let after = trial_marker_gap(&read_fine, &converged, TrialKind::Needle);
-    let fine_error = trial_marker_gap(&fine_alone, &converged, TrialKind::Needle);
-    // Measured: 27.7 um from the placement mesh, 8.0 um read on the
-    // finer one, 5.9 um on the finer mesh alone (the rest is the coarse
-    // placement's).
+    let after = trial_marker_gap(&settled, &converged, TrialKind::Needle);
+    // Measured: 27.7 um from the coarse mesh, 5.85 um settled on the
+    // finer one and on the finer mesh alone.
     assert!(
         after < 0.35 * before,
-        "read on the finer mesh {after} m from the converged markers, {before} m before"
+        "settled on the finer mesh {after} m from the converged markers, {before} m before"
     );
+    // The two are found independently: the settled placement from the
+    // coarse mesh's kept columns and then back-substitutions of the finer
+    // mesh, the finer mesh's own from its kept columns; both consistent to
+    // CONSISTENCY_TOLERANCE in the loads' material points, which move the
+    // far markers by much less (measured: 4.8 nm).
+    let settled_gap = trial_marker_gap(&settled, &fine_alone, TrialKind::Needle);
     assert!(
-        after - fine_error < 0.25 * (before - fine_error),
-        "{after} m against the finer mesh's own {fine_error} m and {before} m"
+        settled_gap < 0.1 * CONSISTENCY_TOLERANCE,
+        "settled {settled_gap} m from the finer mesh's own markers"
     );
-    for (a, r) in alone.iter().zip(&read_fine) {
-        assert_eq!(a.force, r.force, "{}: the force is the placement's", a.id);
+    // The force is the shaft load's integral from the entry, which both
+    // place within the tolerance: they differ by at most the load on
+    // twice that length of shaft (the density at the entry is the shaft's
+    // own, below the mean F / depth).
+    for (settled, own) in settled.iter().zip(&fine_alone) {
+        for ((a, b), depth) in settled.force.iter().zip(&own.force).zip(&own.states) {
+            let bound = 2.0 * CONSISTENCY_TOLERANCE * b.abs() / depth.max(f64::MIN_POSITIVE);
+            assert!((a - b).abs() <= bound, "{}: {a} N against {b} N", own.id);
+        }
     }
 }
 

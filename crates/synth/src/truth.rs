@@ -47,9 +47,9 @@ pub struct Discretisation {
     /// are the half's); see `slab_mesh`.
     #[serde(default)]
     pub upper_half: bool,
-    /// Nodes of the finer mesh the needle trials' markers were solved on
+    /// Nodes of the finer mesh the needle trials were settled on
     /// (`resolution.marker_grading`), if any; the counts above are then
-    /// those of the mesh the needle was placed on.
+    /// those of the mesh the needle was first placed on.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub marker_mesh_nodes: Option<usize>,
     /// Nodes of the slab each probe was pressed on alone

@@ -89,11 +89,12 @@ fn differing_and_expected<'a>(
     (differing, expected)
 }
 
-/// With `resolution.marker_grading` the needle trials' tracks come from
-/// the finer mesh and the probes' stay on the placement mesh; the truth
-/// file says how large the finer mesh was.
+/// With `resolution.marker_grading` the needle trials are settled on the
+/// finer mesh: their tracks and tool samples come from there, and the
+/// probes' stay on the placement mesh; the truth file says how large the
+/// finer mesh was.
 #[test]
-fn a_slab_campaign_reads_its_needle_markers_on_its_marker_mesh() {
+fn a_slab_campaign_settles_its_needles_on_its_marker_mesh() {
     let mut placed = small();
     placed.effects = Effects::none().with(EffectId::OutOfPlane);
     placed.resolution.layers = 2;
@@ -114,11 +115,14 @@ fn a_slab_campaign_reads_its_needle_markers_on_its_marker_mesh() {
         (mesh.nodes, mesh.elements)
     );
     assert!(finer_mesh.marker_mesh_nodes.unwrap() > 2 * mesh.nodes);
-    let (differing, needle_tracks) = differing_and_expected(&alone, &finer, |name| {
-        name.contains("needle") && name.contains("markers")
+    let (differing, needle_files) = differing_and_expected(&alone, &finer, |name| {
+        name.contains("needle") && (name.contains("markers") || name.contains("tool"))
     });
-    assert!(!needle_tracks.is_empty());
-    assert_eq!(differing, needle_tracks, "only the needle's tracks change");
+    assert!(!needle_files.is_empty());
+    assert_eq!(
+        differing, needle_files,
+        "only the needles' tracks and tool samples change"
+    );
 }
 
 /// With `resolution.probe_grading` each probe's tracks and tool samples
