@@ -401,6 +401,8 @@ impl StateIteration {
         self.iterations += 1;
         let largest_move = next.moved_from(&self.placed);
         if largest_move < CONSISTENCY_TOLERANCE {
+            // Keep the placement that was applied, so that the field
+            // answers exactly the recorded load.
             return Ok(true);
         }
         if self.iterations == MAX_CONSISTENCY_ITERATIONS {
