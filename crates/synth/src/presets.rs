@@ -217,11 +217,13 @@ impl Scenario {
     /// (`resolution.marker_grading`, `marker_mesh`), where its markers and
     /// base force are read; each probe pressed on a slab of its own graded
     /// as [`PAPER_FINE_PROBE_GRADING`] (`resolution.probe_grading`,
-    /// `probe_mesh`). On the convergence tests' two insertions its markers
-    /// are within a tenth of the marker noise of the reference at every
-    /// state (0.52 um at worst), and so are its probes' (0.61 um); it takes
-    /// some twenty times the paper default's time and ten times its memory
-    /// to generate (`docs/truth-world.md`, The 3-D slab).
+    /// `probe_mesh`). On every insertion of its campaign its markers are
+    /// within a tenth of the marker noise of the convergence tests'
+    /// reference at every state (0.66 um at worst), and so are its probes'
+    /// (0.61 um); but that reference is itself up to 7.2 um from a slab of
+    /// half its in-plane element size. It takes some twenty times the
+    /// paper default's time and ten times its memory to generate
+    /// (`docs/truth-world.md`, The 3-D slab).
     pub fn paper_default_fine() -> Self {
         let paper = Self::paper_default();
         Scenario {

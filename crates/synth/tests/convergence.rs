@@ -25,7 +25,9 @@
 //! mesh, 0.66 µm and 1.8 µm just after the entry). Another does the same
 //! for each of the campaign's ten insertions (its line, velocity, day and
 //! effects) and passes (0.66 µm at worst; the paper default's mesh 2.9 to
-//! 9.5 µm).
+//! 9.5 µm). All these compare meshes at in-plane refinement 1; one more
+//! test solves the last insertion at refinement 2 and asserts the
+//! reference within a tenth of the noise of it. It fails: 7.2 µm.
 //! Another presses each of the paper default's four probes alone, on
 //! the paper default's slab and on the fine paper default's own probe
 //! slabs (`resolution.probe_grading`), against slabs graded once more
@@ -314,15 +316,7 @@ fn every_insertion_of_the_fine_paper_default_is_within_a_tenth_of_the_marker_noi
         "| insertion | line x (mm) | velocity (mm/s) | day | the paper default's mesh: largest (um), state | the fine paper default: largest (um), state |"
     );
     for (k, plan) in fine.needles.plan().into_iter().enumerate() {
-        let mut alone = fine.clone();
-        alone.probes.clear();
-        alone.compression = None;
-        alone.frames = None;
-        alone.needles.velocities = vec![plan.velocity];
-        alone.needles.days = vec![plan.day];
-        alone.needles.first_line = plan.line;
-        alone.resolution.depth_step = 0.005;
-        alone.resolution.probe_grading = None;
+        let alone = campaign_insertion_alone(&fine, k);
         let insertion = |placement: Option<SlabGrading>, markers: Option<SlabGrading>| {
             let mut s = alone.clone();
             s.resolution.slab_grading = placement;
@@ -353,6 +347,105 @@ fn every_insertion_of_the_fine_paper_default_is_within_a_tenth_of_the_marker_noi
     assert!(
         worst_fine < 0.1 * sigma,
         "the fine paper default {worst_fine} m from the reference, sigma {sigma} m"
+    );
+}
+
+/// The campaign's insertion `k`, alone as in the test above.
+fn campaign_insertion_alone(fine: &Scenario, k: usize) -> Scenario {
+    let plan = fine.needles.plan()[k];
+    let mut alone = fine.clone();
+    alone.probes.clear();
+    alone.compression = None;
+    alone.frames = None;
+    alone.needles.velocities = vec![plan.velocity];
+    alone.needles.days = vec![plan.day];
+    alone.needles.first_line = plan.line;
+    alone.resolution.depth_step = 0.005;
+    alone.resolution.probe_grading = None;
+    alone
+}
+
+/// Every reference above, and every mesh of the sequences it was chosen
+/// by, has the in-plane refinement of 1: grading adds node lines near the
+/// faces, the needle line, the mid-plane and the top face, but the
+/// elements elsewhere in the plane stay a marker spacing wide. This test
+/// halves them: the campaign's last insertion (the worst of the paper
+/// default's) on refinement 2, graded one level less towards the faces
+/// and the needle line so that its finest elements there are the fine
+/// paper default's, against the reference slab at refinement 1. Asserts
+/// the two within a tenth of the marker noise, which would make the
+/// reference's in-plane error negligible; prints the fine paper default's
+/// distance from both.
+#[test]
+#[ignore = "minutes: the reference against a slab of half its in-plane size"]
+fn the_reference_is_converged_in_the_plane() {
+    let fine = Scenario::paper_default_fine();
+    let sigma = fine.sensors.marker_sigma;
+    let alone = campaign_insertion_alone(&fine, fine.needles.plan().len() - 1);
+    let insertion = |refinement: usize, placement: SlabGrading, markers: Option<SlabGrading>| {
+        let mut s = alone.clone();
+        s.resolution.refinement = refinement;
+        s.resolution.slab_grading = Some(placement);
+        s.resolution.marker_grading = markers;
+        respond(&s).unwrap().remove(0).markers
+    };
+    let reference = insertion(1, NEEDLE_REFERENCE, None);
+    let fine_default = insertion(
+        1,
+        fine.resolution.slab_grading.unwrap(),
+        fine.resolution.marker_grading,
+    );
+    let halved_marker_slab = SlabGrading {
+        faces: 4,
+        needle_lines: 2,
+        mid_plane: 2,
+        top_face: 2,
+        probe_edges: 0,
+    };
+    let halved_placement = SlabGrading {
+        faces: 2,
+        needle_lines: 1,
+        ..SlabGrading::DEFAULT
+    };
+    let halved = insertion(2, halved_placement, Some(halved_marker_slab));
+    let worst_marker = |a: &[Vec<[f64; 2]>], b: &[Vec<[f64; 2]>]| {
+        let (gap, state) = largest_over_states(a, b);
+        let marker = a[state]
+            .iter()
+            .zip(&b[state])
+            .map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1]))
+            .enumerate()
+            .fold(
+                (0, 0.0),
+                |best, (i, d)| if d > best.1 { (i, d) } else { best },
+            )
+            .0;
+        (gap, state, marker)
+    };
+    for (name, a, b) in [
+        (
+            "the fine paper default against the reference",
+            &fine_default,
+            &reference,
+        ),
+        (
+            "the fine paper default against refinement 2",
+            &fine_default,
+            &halved,
+        ),
+        ("refinement 2 against the reference", &halved, &reference),
+    ] {
+        let (gap, state, marker) = worst_marker(a, b);
+        println!(
+            "{name}: {:.2} um ({:.3} sigma), state {state}, marker {marker}",
+            gap * 1e6,
+            gap / sigma
+        );
+    }
+    let (gap, _, _) = worst_marker(&halved, &reference);
+    assert!(
+        gap < 0.1 * sigma,
+        "the reference {gap} m from the slab of half its in-plane size, sigma {sigma} m"
     );
 }
 
