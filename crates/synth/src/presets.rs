@@ -221,7 +221,8 @@ impl Scenario {
     /// within a tenth of the marker noise of the convergence tests'
     /// reference at every state (0.66 um at worst), and so are its probes'
     /// (0.61 um); but that reference is itself up to 7.2 um from a slab of
-    /// half its in-plane element size. It takes some twenty times the
+    /// half its in-plane element size, and the in-plane size alone, refined
+    /// twice, moves its markers by 5.2 um. It takes some twenty times the
     /// paper default's time and ten times its memory to generate
     /// (`docs/truth-world.md`, The 3-D slab).
     pub fn paper_default_fine() -> Self {
