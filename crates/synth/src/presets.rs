@@ -71,7 +71,9 @@ pub(crate) const PAPER_FINE_MARKER_GRADING: SlabGrading = SlabGrading {
 /// towards the top face, four towards the faces and sides. Against a slab
 /// graded once more towards each, the four probes' markers are 0.45 to
 /// 0.61 um away, where the paper default's slab leaves 39 to 77 um
-/// (`docs/truth-world.md`, The 3-D slab, session 37).
+/// (`docs/truth-world.md`, The 3-D slab, session 37); but both are at
+/// in-plane refinement 1, and a plan of a third of its in-plane size
+/// moves the first probe's markers by 7.5 um (session 39).
 pub(crate) const PAPER_FINE_PROBE_GRADING: SlabGrading = SlabGrading {
     faces: 4,
     needle_lines: 0,
