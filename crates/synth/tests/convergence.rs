@@ -482,7 +482,9 @@ fn the_in_plane_error_of_the_fine_paper_default_is_below_a_tenth_of_the_marker_n
     let placement = fine.resolution.slab_grading.unwrap();
     // (refinement, grading levels fewer than the fine paper default's)
     let levels = [(1, 0), (2, 1), (4, 2)];
-    let sizes = [3.75, 1.875, 0.9375];
+    let (columns, _) = fine.phantom.markers;
+    let spacing = fine.phantom.width / (columns - 1) as f64;
+    let sizes = levels.map(|(refinement, _)| spacing * 1e3 / refinement as f64);
     let trials: Vec<TrialResponse> = levels
         .iter()
         .map(|&(refinement, fewer)| {
@@ -506,8 +508,6 @@ fn the_in_plane_error_of_the_fine_paper_default_is_below_a_tenth_of_the_marker_n
     // Markers more than 15 mm (four marker spacings) from the needle's
     // line, where the field is smooth.
     let line = fine.needles.plan().last().unwrap().line;
-    let (columns, _) = fine.phantom.markers;
-    let spacing = fine.phantom.width / (columns - 1) as f64;
     let far: Vec<bool> = (0..trials[0].markers[0].len())
         .map(|m| ((m % columns) as f64 * spacing - line).abs() > 0.015)
         .collect();
@@ -561,7 +561,7 @@ fn the_in_plane_error_of_the_fine_paper_default_is_below_a_tenth_of_the_marker_n
     );
     let (d01, d12) = (compare(0, 1), compare(1, 2));
     compare(0, 2);
-    let error = extrapolate_in_plane(sizes, [1, 2, 4], d01, d12, sigma);
+    let error = extrapolate_in_plane(sizes, levels.map(|(r, _)| r), d01, d12, sigma);
     assert!(
         error < 0.1 * sigma,
         "the in-plane error of refinement 1 is {error} m, sigma {sigma} m"
@@ -585,7 +585,7 @@ fn extrapolate_in_plane(
     for (h, refinement) in sizes.iter().zip(refinements) {
         let error = c * h.powf(p);
         println!(
-            "refinement {refinement} (elements {h} mm): extrapolated in-plane error {:.2} um ({:.3} sigma)",
+            "refinement {refinement} (elements {h:.4} mm): extrapolated in-plane error {:.2} um ({:.3} sigma)",
             error * 1e6,
             error / sigma
         );
@@ -709,10 +709,10 @@ fn the_fine_paper_default_s_probes_are_within_a_tenth_of_the_marker_noise() {
 /// elements there are the fine paper default's, and at refinement 3 as
 /// many levels as make them no larger (0.156 and 0.0098 mm against 0.234
 /// and 0.0146; at refinement 4 the run needed more than this machine's
-/// 23 GB). Prints the largest differences and
-/// those at the same force, the observed order and the extrapolated
-/// in-plane errors; asserts that of refinement 1, the fine paper
-/// default's, below a tenth of the marker noise.
+/// 23 GB). Prints the largest differences and those at the same force,
+/// the observed order and the extrapolated in-plane errors; asserts that
+/// of refinement 1, the fine paper default's, below a tenth of the marker
+/// noise.
 #[test]
 #[ignore = "minutes: one probe on three plans"]
 fn the_in_plane_error_of_the_fine_paper_default_s_probes_is_below_a_tenth_of_the_marker_noise() {
@@ -729,7 +729,8 @@ fn the_in_plane_error_of_the_fine_paper_default_s_probes_is_below_a_tenth_of_the
         (2, own.faces - 1, own.probe_edges - 1),
         (3, own.faces - 1, own.probe_edges - 1),
     ];
-    let sizes = [3.75, 1.875, 1.25];
+    let spacing = fine.phantom.width / (columns - 1) as f64;
+    let sizes = levels.map(|(refinement, ..)| spacing * 1e3 / refinement as f64);
     let solved: Vec<(Vec<[f64; 2]>, f64)> = levels
         .iter()
         .map(|&(refinement, faces, probe_edges)| {
@@ -767,7 +768,13 @@ fn the_in_plane_error_of_the_fine_paper_default_s_probes_is_below_a_tenth_of_the
             largest
         })
         .collect();
-    let error = extrapolate_in_plane(sizes, [1, 2, 3], differences[0], differences[1], sigma);
+    let error = extrapolate_in_plane(
+        sizes,
+        levels.map(|(r, ..)| r),
+        differences[0],
+        differences[1],
+        sigma,
+    );
     assert!(
         error < 0.1 * sigma,
         "the in-plane error of the probe's plan at refinement 1 is {error} m, sigma {sigma} m"
