@@ -13,11 +13,13 @@ use needle_fem::element::facet::simplex_mass;
 use needle_fem::element::shape::values_and_gradients;
 use needle_fem::material::{Formulation, Materials};
 use needle_fem::mesh::{BoundaryFacet, Mesh, RectangleMesh};
+use rstar::RTree;
+use rstar::primitives::{GeomWithData, Rectangle};
 
 use crate::error::SynthError;
 use crate::grid::{NEO_HOOKEAN_GRADING_LEVELS, PLANE_GRADING_LEVELS, grade, grid_lines};
 use crate::scenario::{Scenario, SlabGrading};
-use crate::slab_mesh::{Span, grade_plan, layered_slab, upper_planes};
+use crate::slab_mesh::{Span, grade_plan, layered_slab, local_slab, slab_features, upper_planes};
 
 /// The meshed phantom.
 pub(crate) struct Body {
@@ -33,7 +35,8 @@ pub(crate) struct Body {
     /// Whether the mesh is the upper half of the symmetric slab (solved
     /// with $u_z = 0$ held on the mid-plane).
     pub upper_half: bool,
-    /// Element size in the plane (m), the largest grid spacing.
+    /// Element size in the plane (m): the largest grid spacing, or of a
+    /// locally refined slab the largest octree cell.
     pub element_size: f64,
     assembly: Assembly,
     locator: Locator,
@@ -106,20 +109,33 @@ impl Body {
             grade(&mut xs, &singular_x, target, levels);
             grade(&mut ys, &[0.0, p.depth], target, levels);
         }
-        let element_size = xs
+        let mut element_size = xs
             .windows(2)
             .chain(ys.windows(2))
             .map(|w| w[1] - w[0])
             .fold(0.0, f64::max);
-        let plan = RectangleMesh {
-            width: p.width,
-            depth: p.depth,
-            x_lines: xs,
-            y_lines: ys,
-        };
         let (dim, npe, nodes, elements, assembly) = if slab {
             let planes = upper_planes(p.thickness, r.layers, &grading);
-            let mut mesh: Mesh<3> = layered_slab(plan, &planes, span)?;
+            let mut mesh: Mesh<3> = match &grading.local {
+                None => layered_slab(
+                    RectangleMesh {
+                        width: p.width,
+                        depth: p.depth,
+                        x_lines: xs,
+                        y_lines: ys,
+                    },
+                    &planes,
+                    span,
+                )?,
+                Some(local) => {
+                    let needles: Vec<f64> =
+                        scenario.needles.plan().iter().map(|n| n.line).collect();
+                    let features = slab_features(scenario, &needles, x_edges, target, local);
+                    let (mesh, largest) = local_slab([&xs, &ys, &planes], &features, local, span)?;
+                    element_size = largest;
+                    mesh
+                }
+            };
             mesh.renumber_spatially();
             mesh.assign_regions(|x| region_of(x[1]));
             let nodes = mesh.nodes().to_vec();
@@ -132,6 +148,12 @@ impl Body {
                 Assembly::Slab(Assembler::new(mesh, Formulation::Solid)?),
             )
         } else {
+            let plan = RectangleMesh {
+                width: p.width,
+                depth: p.depth,
+                x_lines: xs,
+                y_lines: ys,
+            };
             let mut mesh: Mesh<2> = plan.build(ElementKind::Tri6)?;
             mesh.renumber_spatially();
             mesh.assign_regions(|x| region_of(x[1]));
@@ -353,29 +375,22 @@ impl Body {
     }
 }
 
-/// Point location on the grid the mesh was built on. Every slab and
-/// plane mesh of the truth subdivides the cells of a tensor grid (the
-/// plan's lines, and the node planes through the thickness), and the
-/// lines are the distinct coordinates of the element corners; each cell
-/// lists the elements whose bounding box overlaps it, so a search tries
-/// the handful of simplices of one cell (two on its faces). A grid of
+/// Point location: an R-tree of the elements' bounding boxes (widened by
+/// the slack) gives the handful of simplices whose box holds the point,
+/// and their barycentric coordinates pick the one holding it. A grid of
 /// equal buckets was slower: where the plan is graded towards a face or a
 /// needle line a bucket held dozens of element columns through the whole
 /// thickness, and the drag of a needle with a radius is located at every
-/// point of its rim.
+/// point of its rim. A grid of cells between the distinct corner
+/// coordinates served the tensor plans, but not a locally refined plan,
+/// whose fine lines near one needle would cut every coarse cell.
 struct Locator {
-    /// Cell boundaries per axis, strictly increasing (one infinite cell
-    /// along z in 2-D).
-    lines: [Vec<f64>; 3],
-    /// Elements per cell, x fastest.
-    cells: Vec<Vec<usize>>,
+    tree: RTree<GeomWithData<Rectangle<[f64; 3]>, usize>>,
     /// Per element: first corner and the inverse of the corner Jacobian,
     /// `xi = inverse * (p - origin)`.
     maps: Vec<([f64; 3], [[f64; 3]; 3])>,
-    /// Relative tolerance in reference coordinates, and the absolute one
-    /// of the cell boundaries.
+    /// Relative tolerance in reference coordinates.
     tolerance: f64,
-    slack: f64,
 }
 
 impl Locator {
@@ -394,42 +409,21 @@ impl Locator {
             })
             .fold(0.0, f64::max);
         let slack = 1e-9 * extent;
-        let lines: [Vec<f64>; 3] = std::array::from_fn(|c| {
-            if c >= dim {
-                return vec![f64::NEG_INFINITY, f64::INFINITY];
-            }
-            let mut v: Vec<f64> = elements
-                .chunks(npe)
-                .flat_map(|e| corners(e).into_iter().map(move |p| p[c]))
-                .collect();
-            v.sort_by(f64::total_cmp);
-            v.dedup_by(|b, a| *b - *a <= slack);
-            v
-        });
-        let counts: [usize; 3] = std::array::from_fn(|c| lines[c].len() - 1);
-        let mut cells = vec![Vec::new(); counts.iter().product()];
+        let mut boxes = Vec::with_capacity(elements.len() / npe);
         let mut maps = Vec::with_capacity(elements.len() / npe);
         for (e, element) in elements.chunks(npe).enumerate() {
             let corners = corners(element);
-            let mut range = [(0, 0); 3];
-            for (c, r) in range.iter_mut().enumerate() {
-                let lo = corners.iter().map(|p| p[c]).fold(f64::INFINITY, f64::min);
-                let hi = corners
+            let lo: [f64; 3] = std::array::from_fn(|c| {
+                corners.iter().map(|p| p[c]).fold(f64::INFINITY, f64::min) - slack
+            });
+            let hi: [f64; 3] = std::array::from_fn(|c| {
+                corners
                     .iter()
                     .map(|p| p[c])
-                    .fold(f64::NEG_INFINITY, f64::max);
-                // The cells whose interior the element's box overlaps.
-                let first = lines[c][1..].partition_point(|&l| l <= lo + slack);
-                let last = lines[c][..counts[c]].partition_point(|&l| l < hi - slack);
-                *r = (first, last.max(first + 1).min(counts[c]));
-            }
-            for k in range[2].0..range[2].1 {
-                for j in range[1].0..range[1].1 {
-                    for i in range[0].0..range[0].1 {
-                        cells[(k * counts[1] + j) * counts[0] + i].push(e);
-                    }
-                }
-            }
+                    .fold(f64::NEG_INFINITY, f64::max)
+                    + slack
+            });
+            boxes.push(GeomWithData::new(Rectangle::from_corners(lo, hi), e));
             let mut jac = [[0.0; 3]; 3];
             for k in 0..3 {
                 jac[k][k] = 1.0;
@@ -442,11 +436,9 @@ impl Locator {
             maps.push((corners[0], invert3(&jac)));
         }
         Self {
-            lines,
-            cells,
+            tree: RTree::bulk_load(boxes),
             maps,
             tolerance: 1e-9,
-            slack,
         }
     }
 
@@ -454,45 +446,24 @@ impl Locator {
     /// (on shared faces) the one where `p` lies deepest inside, the first
     /// listed on a tie.
     fn find(&self, p: [f64; 3], dim: usize) -> Option<(usize, [f64; 3])> {
-        // The cells within `slack` of p along each axis: one, or two on a
-        // boundary; none if p lies outside the grid.
-        let mut range = [(0, 0); 3];
-        for (c, r) in range.iter_mut().enumerate() {
-            let lines = &self.lines[c];
-            let count = lines.len() - 1;
-            let first = lines[1..].partition_point(|&l| l < p[c] - self.slack);
-            let last = lines[..count].partition_point(|&l| l <= p[c] + self.slack);
-            if first >= last {
-                return None;
-            }
-            *r = (first, last);
-        }
-        let counts = [
-            self.lines[0].len() - 1,
-            self.lines[1].len() - 1,
-            self.lines[2].len() - 1,
-        ];
+        // A 2-D mesh's nodes, and so its boxes, lie at z = 0.
+        let query = if dim == 2 { [p[0], p[1], 0.0] } else { p };
         let mut best: Option<(usize, [f64; 3], f64)> = None;
-        for k in range[2].0..range[2].1 {
-            for j in range[1].0..range[1].1 {
-                for i in range[0].0..range[0].1 {
-                    for &e in &self.cells[(k * counts[1] + j) * counts[0] + i] {
-                        let (origin, inverse) = &self.maps[e];
-                        let d = [p[0] - origin[0], p[1] - origin[1], p[2] - origin[2]];
-                        let mut xi = [0.0; 3];
-                        for r in 0..dim {
-                            xi[r] = (0..dim).map(|c| inverse[r][c] * d[c]).sum();
-                        }
-                        let l0 = 1.0 - xi[..dim].iter().sum::<f64>();
-                        let inside = xi[..dim].iter().copied().fold(l0, f64::min);
-                        let better = best
-                            .as_ref()
-                            .is_none_or(|b| inside > b.2 || (inside == b.2 && e < b.0));
-                        if better {
-                            best = Some((e, xi, inside));
-                        }
-                    }
-                }
+        for candidate in self.tree.locate_all_at_point(query) {
+            let e = candidate.data;
+            let (origin, inverse) = &self.maps[e];
+            let d = [p[0] - origin[0], p[1] - origin[1], p[2] - origin[2]];
+            let mut xi = [0.0; 3];
+            for r in 0..dim {
+                xi[r] = (0..dim).map(|c| inverse[r][c] * d[c]).sum();
+            }
+            let l0 = 1.0 - xi[..dim].iter().sum::<f64>();
+            let inside = xi[..dim].iter().copied().fold(l0, f64::min);
+            let better = best
+                .as_ref()
+                .is_none_or(|b| inside > b.2 || (inside == b.2 && e < b.0));
+            if better {
+                best = Some((e, xi, inside));
             }
         }
         best.filter(|b| b.2 >= -self.tolerance)

@@ -37,6 +37,7 @@ pub(crate) const PAPER_SLAB_GRADING: SlabGrading = SlabGrading {
     mid_plane: 0,
     top_face: 0,
     probe_edges: 0,
+    local: None,
 };
 
 /// The mesh the fine paper default first places its needle on: as the
@@ -64,6 +65,7 @@ pub(crate) const PAPER_FINE_MARKER_GRADING: SlabGrading = SlabGrading {
     mid_plane: 2,
     top_face: 2,
     probe_edges: 0,
+    local: None,
 };
 
 /// The slab each probe of the fine paper default is pressed on alone:
@@ -80,6 +82,7 @@ pub(crate) const PAPER_FINE_PROBE_GRADING: SlabGrading = SlabGrading {
     mid_plane: 0,
     top_face: 3,
     probe_edges: 8,
+    local: None,
 };
 
 /// The radius of the paper's needle, a 17 gauge Tuohy epidural needle

@@ -138,6 +138,11 @@ pub struct SlabGrading {
     /// the front face it presses on, by as many levels; absent, 0.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub probe_edges: usize,
+    /// The mesh refined locally, an octree on the cells of the graded
+    /// tensor grid (`local_mesh`); absent, the tensor grid alone, cut into
+    /// six tetrahedra per cell.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub local: Option<LocalRefinement>,
 }
 
 fn is_zero(levels: &usize) -> bool {
@@ -154,11 +159,42 @@ impl SlabGrading {
         mid_plane: 0,
         top_face: 0,
         probe_edges: 0,
+        local: None,
     };
 
     /// The most levels of any kind: elements down to $h/1024$ (a probe
     /// edge's reference in the convergence test takes 9).
     pub const MAX_LEVELS: usize = 10;
+}
+
+/// Local refinement of the 3-D slab's mesh (`local_mesh`): each cell of
+/// the tensor grid is halved, as an octree, until it is no larger than
+/// $\max(h_f, g\,d_f)$ for every feature $f$, at distance $d_f$ with
+/// $h_f$ the marker spacing over the refinement, halved `levels` times.
+/// The features are where the slab's displacement is singular or steep.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LocalRefinement {
+    /// Levels along every needle's path, from the front face to its final
+    /// tip depth (the line load's field is $\sim \ln r$ towards it).
+    pub needle_paths: usize,
+    /// Levels at every needle's entry, where the line load meets the free
+    /// front face and sets the force, and at its final tip.
+    pub needle_ends: usize,
+    /// Levels along the edges of the clamped back face with the free top
+    /// face and sides, where the displacement is singular.
+    pub back_face: usize,
+    /// Levels at the edges of every probe on the front face.
+    pub probe_edges: usize,
+    /// The grading $g$: the largest cell over its distance to a feature;
+    /// smaller is finer. 0.25 to 4.
+    pub grading: f64,
+}
+
+impl LocalRefinement {
+    /// The range of [`LocalRefinement::grading`] accepted: from cells a
+    /// quarter of their distance to cells four times it.
+    pub const GRADING: (f64, f64) = (0.25, 4.0);
 }
 
 /// Shaft force density without effects.
@@ -394,6 +430,30 @@ impl Scenario {
                         )
                     },
                 )?;
+                if let Some(local) = &g.local {
+                    let levels = [
+                        local.needle_paths,
+                        local.needle_ends,
+                        local.back_face,
+                        local.probe_edges,
+                    ];
+                    c.check(
+                        levels.iter().all(|&l| l <= SlabGrading::MAX_LEVELS),
+                        &format!("{field}.local"),
+                        || {
+                            format!(
+                                "levels must be 0 to {}, got {levels:?}",
+                                SlabGrading::MAX_LEVELS
+                            )
+                        },
+                    )?;
+                    let (lo, hi) = LocalRefinement::GRADING;
+                    c.check(
+                        (lo..=hi).contains(&local.grading),
+                        &format!("{field}.local.grading"),
+                        || format!("must be {lo} to {hi}, got {}", local.grading),
+                    )?;
+                }
             }
         }
         if let Some(levels) = r.plane_grading {

@@ -32,7 +32,8 @@ use needle_fem::mesh::{Mesh, RectangleMesh, SlabMesh};
 
 use crate::error::SynthError;
 use crate::grid::grade;
-use crate::scenario::SlabGrading;
+use crate::local_mesh::{Feature, mesh_locally, mirrored};
+use crate::scenario::{LocalRefinement, Scenario, SlabGrading};
 
 /// Grades the in-plane grid lines `xs`, `ys` (elements at most `target`)
 /// of a `width` x `depth` slab towards its faces and sides, the needle
@@ -117,6 +118,69 @@ pub(crate) fn layered_slab(
     Ok(linear.to_quadratic()?)
 }
 
+/// The places `local` refines the slab's upper half towards: every
+/// needle's path on the mid-plane (its entry and final tip finer), the
+/// edges of the probes `probe_edges` on the front face, and the edges
+/// of the clamped back face with the top face and the sides; sizes
+/// `target` halved as many levels as `local` asks.
+pub(crate) fn slab_features(
+    scenario: &Scenario,
+    needles: &[f64],
+    probe_edges: &[f64],
+    target: f64,
+    local: &LocalRefinement,
+) -> Vec<Feature> {
+    let p = &scenario.phantom;
+    let (w, d, top) = (p.width, p.depth, 0.5 * p.thickness);
+    let feature = |lo: [f64; 3], hi: [f64; 3], levels: usize| Feature {
+        lo,
+        hi,
+        size: target / (1u64 << levels) as f64,
+    };
+    let tip = scenario.needles.depth.min(d);
+    let mut features = vec![
+        feature([0.0, d, top], [w, d, top], local.back_face),
+        feature([0.0, d, 0.0], [0.0, d, top], local.back_face),
+        feature([w, d, 0.0], [w, d, top], local.back_face),
+    ];
+    for &x in needles {
+        features.push(feature([x, 0.0, 0.0], [x, tip, 0.0], local.needle_paths));
+        for y in [0.0, tip] {
+            features.push(feature([x, y, 0.0], [x, y, 0.0], local.needle_ends));
+        }
+    }
+    for &x in probe_edges {
+        features.push(feature([x, 0.0, 0.0], [x, 0.0, top], local.probe_edges));
+    }
+    features
+}
+
+/// The Tet10 slab of the octree over the grid `lines` (x, y and the
+/// upper half's node planes) refined towards `features` as `local` says:
+/// its upper half, or the whole slab with the lower half its mirror
+/// image; and the largest octree cell.
+pub(crate) fn local_slab(
+    lines: [&[f64]; 3],
+    features: &[Feature],
+    local: &LocalRefinement,
+    span: Span,
+) -> Result<(Mesh<3>, f64), SynthError> {
+    let upper = mesh_locally(lines, features, local.grading);
+    let largest = upper.largest;
+    let mesh = match span {
+        Span::UpperHalf => upper,
+        Span::Whole => mirrored(&upper),
+    };
+    let elements = mesh.tetrahedra.len();
+    let linear = Mesh::new(
+        ElementKind::Tet4,
+        mesh.nodes,
+        mesh.tetrahedra.concat(),
+        vec![0; elements],
+    )?;
+    Ok((linear.to_quadratic()?, largest))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -129,6 +193,7 @@ mod tests {
             mid_plane: 2,
             top_face: 1,
             probe_edges: 0,
+            local: None,
         };
         // Layers of 4 from -4 to 4: the top one split twice towards 0.
         assert_eq!(upper_planes(8.0, 2, &grading), [0.0, 1.0, 2.0, 4.0]);

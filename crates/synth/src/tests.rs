@@ -13,7 +13,7 @@ use crate::scenario::{NeedlePlan, Scenario};
 use crate::slab_mesh::Span;
 use crate::system::{Factorised, Stiffness};
 use crate::world::World;
-use crate::{SlabGrading, TrialResponse, respond};
+use crate::{LocalRefinement, SlabGrading, TrialResponse, respond};
 use needle_data::TrialKind;
 use needle_fem::material::Materials;
 
@@ -45,6 +45,34 @@ fn plane_and_slab() -> [Scenario; 2] {
     ]
 }
 
+/// The small slab meshed locally (`local_mesh`): an octree refined
+/// towards the needle's path and ends and the back face's edges.
+fn local_slab() -> Scenario {
+    let [_, mut s] = plane_and_slab();
+    s.resolution.slab_grading = Some(SlabGrading {
+        faces: 0,
+        needle_lines: 0,
+        mid_plane: 0,
+        top_face: 0,
+        probe_edges: 0,
+        local: Some(LocalRefinement {
+            needle_paths: 1,
+            needle_ends: 2,
+            back_face: 1,
+            probe_edges: 1,
+            grading: 1.0,
+        }),
+    });
+    s
+}
+
+/// The small scenario on the plane, the tensor slab and the local slab.
+fn every_body() -> Vec<Scenario> {
+    let mut all = plane_and_slab().to_vec();
+    all.push(local_slab());
+    all
+}
+
 fn plan(s: &Scenario) -> NeedlePlan {
     s.needles.plan()[0]
 }
@@ -64,7 +92,7 @@ fn back_reaction(world: &World, r: &[f64]) -> f64 {
 
 #[test]
 fn needle_load_is_balanced_by_the_fixed_face() {
-    for s in plane_and_slab() {
+    for s in every_body() {
         let world = World::new(&s).unwrap();
         let response = world.response(0.0).unwrap();
         let run = insert(
@@ -199,7 +227,7 @@ fn barycentric(body: &crate::body::Body, e: usize, p: [f64; 3]) -> Vec<f64> {
 
 #[test]
 fn every_point_of_the_body_is_located_in_an_element_that_holds_it() {
-    for s in plane_and_slab() {
+    for s in every_body() {
         let world = World::new(&s).unwrap();
         let body = &world.body;
         let (lo, hi) = body.bounds();
@@ -809,7 +837,13 @@ fn marker_gap(a: &[Vec<[f64; 3]>], b: &[Vec<[f64; 3]>]) -> (f64, f64) {
 
 #[test]
 fn the_slabs_upper_half_answers_as_the_whole_symmetric_slab() {
-    let [_, mut s] = plane_and_slab();
+    let [_, tensor] = plane_and_slab();
+    for s in [tensor, local_slab()] {
+        upper_half_answers_as_the_whole(s);
+    }
+}
+
+fn upper_half_answers_as_the_whole(mut s: Scenario) {
     // Springs on the back face too: the half carries half their area.
     s.effects.compliant_support = Some(CompliantSupport {
         normal: 1e6,
@@ -966,6 +1000,7 @@ fn a_needle_settled_on_a_finer_mesh_is_that_mesh_s_own() {
         mid_plane: 1,
         top_face: 2,
         probe_edges: 0,
+        local: None,
     };
     let reference = SlabGrading {
         faces: 4,
@@ -973,6 +1008,7 @@ fn a_needle_settled_on_a_finer_mesh_is_that_mesh_s_own() {
         mid_plane: 2,
         top_face: 3,
         probe_edges: 0,
+        local: None,
     };
     let converged = respond(&graded_slab(reference, None)).unwrap();
     let alone = respond(&graded_slab(coarse, None)).unwrap();

@@ -105,6 +105,7 @@ fn a_slab_campaign_settles_its_needles_on_its_marker_mesh() {
         mid_plane: 1,
         top_face: 2,
         probe_edges: 0,
+        local: None,
     });
     let dir = tempfile::tempdir().unwrap();
     let (alone, mesh) = generated(&placed, dir.path(), "alone");

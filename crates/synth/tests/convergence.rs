@@ -53,7 +53,8 @@ use needle_data::TrialKind;
 use needle_synth::interpolate::stencil;
 use needle_synth::sensor::stated_force_sigma;
 use needle_synth::{
-    EffectId, Effects, Scenario, SlabGrading, TrialResponse, load_scenario, respond,
+    EffectId, Effects, LocalRefinement, Scenario, SlabGrading, TrialResponse, load_scenario,
+    respond,
 };
 
 fn slab(refinement: usize, layers: usize, depth_step: f64) -> Scenario {
@@ -150,6 +151,7 @@ fn discretisation_error_is_below_a_tenth_of_the_marker_noise() {
         mid_plane: through,
         top_face: through,
         probe_edges: 0,
+        local: None,
     };
     // Through the thickness, on the finest plan: 1, 2 and 3 levels towards
     // the mid-plane and the top face, the finest layer t/8, t/16, t/32.
@@ -232,6 +234,7 @@ const NEEDLE_REFERENCE: SlabGrading = SlabGrading {
     mid_plane: 3,
     top_face: 3,
     probe_edges: 0,
+    local: None,
 };
 
 /// The insertion of the null slab above, and one of the paper default's
@@ -423,6 +426,7 @@ fn the_reference_is_converged_in_the_plane() {
         mid_plane: 2,
         top_face: 2,
         probe_edges: 0,
+        local: None,
     };
     let halved_placement = SlabGrading {
         faces: 2,
@@ -501,6 +505,7 @@ fn the_in_plane_error_of_the_fine_paper_default_is_below_a_tenth_of_the_marker_n
                 mid_plane: 1,
                 top_face: 1,
                 probe_edges: 0,
+                local: None,
             });
             respond(&s).unwrap().remove(0)
         })
@@ -591,6 +596,102 @@ fn extrapolate_in_plane(
         );
     }
     c * sizes[0].powf(p)
+}
+
+/// The last insertion of the fine paper default settled on a slab meshed
+/// locally as `local` says (`local_mesh`), at in-plane refinement 2 with
+/// four layers (cells of 1.875 mm far from every feature), placed on the
+/// tensor slab of that refinement.
+fn settled_locally(local: LocalRefinement) -> TrialResponse {
+    let fine = Scenario::paper_default_fine();
+    let mut s = campaign_insertion_alone(&fine, fine.needles.plan().len() - 1);
+    s.resolution.refinement = 2;
+    s.resolution.layers = 4;
+    s.resolution.slab_grading = Some(SlabGrading {
+        faces: 1,
+        needle_lines: 1,
+        ..fine.resolution.slab_grading.unwrap()
+    });
+    s.resolution.marker_grading = Some(SlabGrading {
+        faces: 0,
+        needle_lines: 0,
+        mid_plane: 0,
+        top_face: 0,
+        probe_edges: 0,
+        local: Some(local),
+    });
+    respond(&s).unwrap().remove(0)
+}
+
+#[test]
+#[ignore = "about four minutes: the last insertion on five locally refined slabs"]
+fn a_locally_refined_slab_is_within_a_tenth_of_the_marker_noise_of_each_finer_one() {
+    let sigma = Scenario::paper_default_fine().sensors.marker_sigma;
+    let base = LocalRefinement {
+        needle_paths: 2,
+        needle_ends: 4,
+        back_face: 2,
+        probe_edges: 0,
+        grading: 1.0,
+    };
+    let finer = [
+        (
+            "path: one level more",
+            LocalRefinement {
+                needle_paths: 3,
+                ..base
+            },
+        ),
+        (
+            "entry and tip: two levels more",
+            LocalRefinement {
+                needle_ends: 6,
+                ..base
+            },
+        ),
+        (
+            "back face: one level more",
+            LocalRefinement {
+                back_face: 3,
+                ..base
+            },
+        ),
+        (
+            "grading 0.7",
+            LocalRefinement {
+                grading: 0.7,
+                ..base
+            },
+        ),
+    ];
+    let (columns, _) = Scenario::paper_default_fine().phantom.markers;
+    let reference = settled_locally(base);
+    println!(
+        "| refined | largest marker difference | where (state, column, row) | force, relative |"
+    );
+    let mut worst: f64 = 0.0;
+    for (name, local) in finer {
+        let trial = settled_locally(local);
+        let (gap, state, marker) = worst_marker(&reference.markers, &trial.markers);
+        let force = reference
+            .force
+            .iter()
+            .zip(&trial.force)
+            .map(|(a, b)| (a - b).abs() / b.max(f64::MIN_POSITIVE))
+            .fold(0.0, f64::max);
+        println!(
+            "| {name} | {:.2} um ({:.3} sigma) | {state}, {}, {} | {force:.1e} |",
+            gap * 1e6,
+            gap / sigma,
+            marker % columns,
+            marker / columns,
+        );
+        worst = worst.max(gap);
+    }
+    assert!(
+        worst < 0.1 * sigma,
+        "a finer slab moves the markers by {worst} m, sigma {sigma} m"
+    );
 }
 
 /// The final markers and force of probe `k` of `base` pressed alone: on

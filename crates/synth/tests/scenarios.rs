@@ -3,7 +3,9 @@
 
 use std::path::PathBuf;
 
-use needle_synth::{EffectId, Resolution, Scenario, SlabGrading, SynthError, load_scenario};
+use needle_synth::{
+    EffectId, LocalRefinement, Resolution, Scenario, SlabGrading, SynthError, load_scenario,
+};
 
 fn fixture(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -188,6 +190,52 @@ fn out_of_range_value_names_the_dotted_field() {
             assert!(
                 matches!(e, SynthError::InvalidField { ref field, .. } if field == name),
                 "{name}, {grading:?}: {e}"
+            );
+        }
+    }
+    let local = LocalRefinement {
+        needle_paths: 2,
+        needle_ends: 4,
+        back_face: 2,
+        probe_edges: 2,
+        grading: 1.0,
+    };
+    let bad_local = [
+        (
+            LocalRefinement {
+                needle_ends: SlabGrading::MAX_LEVELS + 1,
+                ..local
+            },
+            "local",
+        ),
+        (
+            LocalRefinement {
+                grading: LocalRefinement::GRADING.0 / 2.0,
+                ..local
+            },
+            "local.grading",
+        ),
+        (
+            LocalRefinement {
+                grading: f64::NAN,
+                ..local
+            },
+            "local.grading",
+        ),
+    ];
+    for (name, set) in fields {
+        for (bad, part) in bad_local {
+            let mut s = Scenario::paper_default();
+            let grading = SlabGrading {
+                local: Some(bad),
+                ..SlabGrading::DEFAULT
+            };
+            set(&mut s.resolution, grading);
+            let e = s.validate("memory").unwrap_err();
+            let expected = format!("{name}.{part}");
+            assert!(
+                matches!(e, SynthError::InvalidField { ref field, .. } if *field == expected),
+                "{expected}, {bad:?}: {e}"
             );
         }
     }
