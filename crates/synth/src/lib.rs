@@ -26,7 +26,10 @@
 //!   on the mid-plane. The slab's mesh is mirrored in its mid-plane, and
 //!   unless the platform's foundation acts under its bottom face it is
 //!   solved as its upper half, which gives the whole's displacement
-//!   exactly (`slab_mesh`).
+//!   exactly (`slab_mesh`). The slab is a tensor grid cut into six
+//!   tetrahedra per cell, or, with `SlabGrading::local`, an octree on the
+//!   grid's cells refined towards the needles, probe edges and back face
+//!   (`local_mesh`).
 //! - A linear truth factorises $K$ once for every day whose moduli are a
 //!   uniform multiple of the day-0 moduli (stiffening over days scales the
 //!   solution by $1/c$), and every state is a back-substitution; probes
