@@ -174,7 +174,8 @@ impl Body {
             Assembly::Plane(a) => a.mesh().boundary_facets(),
             Assembly::Slab(a) => a.mesh().boundary_facets(),
         };
-        let locator = Locator::new(&nodes, &elements, npe, dim);
+        let on_grid = !slab || grading.local.is_none();
+        let locator = Locator::new(&nodes, &elements, npe, dim, on_grid);
         let mut bounds = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
         for n in &nodes {
             for c in 0..3 {
@@ -375,17 +376,10 @@ impl Body {
     }
 }
 
-/// Point location: an R-tree of the elements' bounding boxes (widened by
-/// the slack) gives the handful of simplices whose box holds the point,
-/// and their barycentric coordinates pick the one holding it. A grid of
-/// equal buckets was slower: where the plan is graded towards a face or a
-/// needle line a bucket held dozens of element columns through the whole
-/// thickness, and the drag of a needle with a radius is located at every
-/// point of its rim. A grid of cells between the distinct corner
-/// coordinates served the tensor plans, but not a locally refined plan,
-/// whose fine lines near one needle would cut every coarse cell.
+/// Point location: a handful of candidate elements, then their
+/// barycentric coordinates pick the one holding the point.
 struct Locator {
-    tree: RTree<GeomWithData<Rectangle<[f64; 3]>, usize>>,
+    candidates: Candidates,
     /// Per element: first corner and the inverse of the corner Jacobian,
     /// `xi = inverse * (p - origin)`.
     maps: Vec<([f64; 3], [[f64; 3]; 3])>,
@@ -393,11 +387,39 @@ struct Locator {
     tolerance: f64,
 }
 
+/// Where the elements that may hold a point are listed.
+///
+/// Every tensor mesh of the truth subdivides the cells of a grid (the
+/// plan's lines and the node planes), whose lines are the distinct
+/// coordinates of the element corners; each cell lists the elements
+/// whose box overlaps it, so a search tries the simplices of one cell
+/// (two on its faces). A locally refined slab's fine lines near one
+/// feature would cut every coarse cell of such a grid, so its elements'
+/// boxes go into an R-tree instead; on the tensor meshes the R-tree was
+/// 7% slower over the paper default's campaign (median of the ratios of
+/// five runs side by side, `docs/benchmarks.md`, session 40). A grid of
+/// equal buckets was slower still: where the plan is graded towards a
+/// face or a needle line a bucket held dozens of element columns
+/// through the whole thickness, and the drag of a needle with a radius
+/// is located at every point of its rim.
+enum Candidates {
+    Grid {
+        /// Cell boundaries per axis, strictly increasing (one infinite
+        /// cell along z in 2-D).
+        lines: [Vec<f64>; 3],
+        /// Elements per cell, x fastest.
+        cells: Vec<Vec<usize>>,
+        /// Absolute tolerance of the cell boundaries.
+        slack: f64,
+    },
+    Tree(RTree<GeomWithData<Rectangle<[f64; 3]>, usize>>),
+}
+
 impl Locator {
-    fn new(nodes: &[[f64; 3]], elements: &[usize], npe: usize, dim: usize) -> Self {
-        let corners = |element: &[usize]| -> Vec<[f64; 3]> {
-            element[..=dim].iter().map(|&n| nodes[n]).collect()
-        };
+    /// The locator of the elements `elements` (`npe` nodes each) over
+    /// `nodes`; on a grid of cells if `on_grid` (the mesh subdivides the
+    /// cells of a tensor grid), else on an R-tree.
+    fn new(nodes: &[[f64; 3]], elements: &[usize], npe: usize, dim: usize, on_grid: bool) -> Self {
         let extent = (0..dim)
             .map(|c| {
                 let (lo, hi) = nodes
@@ -409,34 +431,57 @@ impl Locator {
             })
             .fold(0.0, f64::max);
         let slack = 1e-9 * extent;
-        let mut boxes = Vec::with_capacity(elements.len() / npe);
-        let mut maps = Vec::with_capacity(elements.len() / npe);
-        for (e, element) in elements.chunks(npe).enumerate() {
-            let corners = corners(element);
-            let lo: [f64; 3] = std::array::from_fn(|c| {
-                corners.iter().map(|p| p[c]).fold(f64::INFINITY, f64::min) - slack
-            });
-            let hi: [f64; 3] = std::array::from_fn(|c| {
-                corners
+        let corners: Vec<Vec<[f64; 3]>> = elements
+            .chunks(npe)
+            .map(|element| element[..=dim].iter().map(|&n| nodes[n]).collect())
+            .collect();
+        let boxes: Vec<([f64; 3], [f64; 3])> = corners
+            .iter()
+            .map(|corners| {
+                let lo = std::array::from_fn(|c| {
+                    corners.iter().map(|p| p[c]).fold(f64::INFINITY, f64::min)
+                });
+                let hi = std::array::from_fn(|c| {
+                    corners
+                        .iter()
+                        .map(|p| p[c])
+                        .fold(f64::NEG_INFINITY, f64::max)
+                });
+                (lo, hi)
+            })
+            .collect();
+        let candidates = if on_grid {
+            grid_candidates(&boxes, dim, slack)
+        } else {
+            let widened = |x: [f64; 3], by: f64| x.map(|v| v + by);
+            Candidates::Tree(RTree::bulk_load(
+                boxes
                     .iter()
-                    .map(|p| p[c])
-                    .fold(f64::NEG_INFINITY, f64::max)
-                    + slack
-            });
-            boxes.push(GeomWithData::new(Rectangle::from_corners(lo, hi), e));
-            let mut jac = [[0.0; 3]; 3];
-            for k in 0..3 {
-                jac[k][k] = 1.0;
-            }
-            for col in 0..dim {
-                for row in 0..dim {
-                    jac[row][col] = corners[col + 1][row] - corners[0][row];
+                    .enumerate()
+                    .map(|(e, (lo, hi))| {
+                        let (lo, hi) = (widened(*lo, -slack), widened(*hi, slack));
+                        GeomWithData::new(Rectangle::from_corners(lo, hi), e)
+                    })
+                    .collect(),
+            ))
+        };
+        let maps = corners
+            .iter()
+            .map(|corners| {
+                let mut jac = [[0.0; 3]; 3];
+                for k in 0..3 {
+                    jac[k][k] = 1.0;
                 }
-            }
-            maps.push((corners[0], invert3(&jac)));
-        }
+                for col in 0..dim {
+                    for row in 0..dim {
+                        jac[row][col] = corners[col + 1][row] - corners[0][row];
+                    }
+                }
+                (corners[0], invert3(&jac))
+            })
+            .collect();
         Self {
-            tree: RTree::bulk_load(boxes),
+            candidates,
             maps,
             tolerance: 1e-9,
         }
@@ -446,11 +491,8 @@ impl Locator {
     /// (on shared faces) the one where `p` lies deepest inside, the first
     /// listed on a tie.
     fn find(&self, p: [f64; 3], dim: usize) -> Option<(usize, [f64; 3])> {
-        // A 2-D mesh's nodes, and so its boxes, lie at z = 0.
-        let query = if dim == 2 { [p[0], p[1], 0.0] } else { p };
         let mut best: Option<(usize, [f64; 3], f64)> = None;
-        for candidate in self.tree.locate_all_at_point(query) {
-            let e = candidate.data;
+        let mut consider = |e: usize| {
             let (origin, inverse) = &self.maps[e];
             let d = [p[0] - origin[0], p[1] - origin[1], p[2] - origin[2]];
             let mut xi = [0.0; 3];
@@ -465,9 +507,83 @@ impl Locator {
             if better {
                 best = Some((e, xi, inside));
             }
+        };
+        match &self.candidates {
+            Candidates::Grid {
+                lines,
+                cells,
+                slack,
+            } => {
+                // The cells within `slack` of p along each axis: one, or
+                // two on a boundary; none if p lies outside the grid.
+                let mut range = [(0, 0); 3];
+                for (c, r) in range.iter_mut().enumerate() {
+                    let count = lines[c].len() - 1;
+                    let first = lines[c][1..].partition_point(|&l| l < p[c] - slack);
+                    let last = lines[c][..count].partition_point(|&l| l <= p[c] + slack);
+                    if first >= last {
+                        return None;
+                    }
+                    *r = (first, last);
+                }
+                let counts = lines.each_ref().map(|l| l.len() - 1);
+                for k in range[2].0..range[2].1 {
+                    for j in range[1].0..range[1].1 {
+                        for i in range[0].0..range[0].1 {
+                            for &e in &cells[(k * counts[1] + j) * counts[0] + i] {
+                                consider(e);
+                            }
+                        }
+                    }
+                }
+            }
+            Candidates::Tree(tree) => {
+                // A 2-D mesh's nodes, and so its boxes, lie at z = 0.
+                let query = if dim == 2 { [p[0], p[1], 0.0] } else { p };
+                for candidate in tree.locate_all_at_point(query) {
+                    consider(candidate.data);
+                }
+            }
         }
         best.filter(|b| b.2 >= -self.tolerance)
             .map(|(e, xi, _)| (e, xi))
+    }
+}
+
+/// The grid of cells between the distinct corner coordinates of the
+/// elements with boxes `boxes` (coordinates within `slack` are one line),
+/// each cell listing the elements whose box overlaps its interior.
+fn grid_candidates(boxes: &[([f64; 3], [f64; 3])], dim: usize, slack: f64) -> Candidates {
+    let lines: [Vec<f64>; 3] = std::array::from_fn(|c| {
+        if c >= dim {
+            return vec![f64::NEG_INFINITY, f64::INFINITY];
+        }
+        let mut v: Vec<f64> = boxes.iter().flat_map(|(lo, hi)| [lo[c], hi[c]]).collect();
+        v.sort_by(f64::total_cmp);
+        v.dedup_by(|b, a| *b - *a <= slack);
+        v
+    });
+    let counts: [usize; 3] = std::array::from_fn(|c| lines[c].len() - 1);
+    let mut cells = vec![Vec::new(); counts.iter().product()];
+    for (e, (lo, hi)) in boxes.iter().enumerate() {
+        let mut range = [(0, 0); 3];
+        for (c, r) in range.iter_mut().enumerate() {
+            let first = lines[c][1..].partition_point(|&l| l <= lo[c] + slack);
+            let last = lines[c][..counts[c]].partition_point(|&l| l < hi[c] - slack);
+            *r = (first, last.max(first + 1).min(counts[c]));
+        }
+        for k in range[2].0..range[2].1 {
+            for j in range[1].0..range[1].1 {
+                for i in range[0].0..range[0].1 {
+                    cells[(k * counts[1] + j) * counts[0] + i].push(e);
+                }
+            }
+        }
+    }
+    Candidates::Grid {
+        lines,
+        cells,
+        slack,
     }
 }
 
