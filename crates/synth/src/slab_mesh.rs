@@ -26,6 +26,11 @@
 //! each needle line take the worst marker, beside the needle's entry,
 //! from 18 um to 4.7 um for about twice the time (the paper default;
 //! `docs/truth-world.md`, The 3-D slab).
+//!
+//! A grading with `local` set meshes the slab as an octree on the cells
+//! of the graded grid instead (`local_mesh`), refined towards the
+//! features [`slab_features`] lists: only near them, where the grid's
+//! lines would refine whole rows, columns and layers of the slab.
 
 use needle_fem::element::ElementKind;
 use needle_fem::mesh::{Mesh, RectangleMesh, SlabMesh};
