@@ -114,24 +114,20 @@ impl Body {
             .chain(ys.windows(2))
             .map(|w| w[1] - w[0])
             .fold(0.0, f64::max);
+        let plan = RectangleMesh {
+            width: p.width,
+            depth: p.depth,
+            x_lines: xs,
+            y_lines: ys,
+        };
         let (dim, npe, nodes, elements, assembly) = if slab {
             let planes = upper_planes(p.thickness, r.layers, &grading);
             let mut mesh: Mesh<3> = match &grading.local {
-                None => layered_slab(
-                    RectangleMesh {
-                        width: p.width,
-                        depth: p.depth,
-                        x_lines: xs,
-                        y_lines: ys,
-                    },
-                    &planes,
-                    span,
-                )?,
+                None => layered_slab(plan, &planes, span)?,
                 Some(local) => {
-                    let needles: Vec<f64> =
-                        scenario.needles.plan().iter().map(|n| n.line).collect();
-                    let features = slab_features(scenario, &needles, x_edges, target, local);
-                    let (mesh, largest) = local_slab([&xs, &ys, &planes], &features, local, span)?;
+                    let features = slab_features(scenario, x_edges, target, local);
+                    let lines = [&plan.x_lines[..], &plan.y_lines, &planes];
+                    let (mesh, largest) = local_slab(lines, &features, local, span)?;
                     element_size = largest;
                     mesh
                 }
@@ -148,12 +144,6 @@ impl Body {
                 Assembly::Slab(Assembler::new(mesh, Formulation::Solid)?),
             )
         } else {
-            let plan = RectangleMesh {
-                width: p.width,
-                depth: p.depth,
-                x_lines: xs,
-                y_lines: ys,
-            };
             let mut mesh: Mesh<2> = plan.build(ElementKind::Tri6)?;
             mesh.renumber_spatially();
             mesh.assign_regions(|x| region_of(x[1]));

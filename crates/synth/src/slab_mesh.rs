@@ -123,14 +123,13 @@ pub(crate) fn layered_slab(
     Ok(linear.to_quadratic()?)
 }
 
-/// The places `local` refines the slab's upper half towards: every
-/// needle's path on the mid-plane (its entry and final tip finer), the
-/// edges of the probes `probe_edges` on the front face, and the edges
-/// of the clamped back face with the top face and the sides; sizes
-/// `target` halved as many levels as `local` asks.
+/// The places `local` refines the slab's upper half towards: the path
+/// of every needle of `scenario` on the mid-plane (its entry and final
+/// tip finer), the edges of the probes `probe_edges` on the front face,
+/// and the edges of the clamped back face with the top face and the
+/// sides; sizes `target` halved as many levels as `local` asks.
 pub(crate) fn slab_features(
     scenario: &Scenario,
-    needles: &[f64],
     probe_edges: &[f64],
     target: f64,
     local: &LocalRefinement,
@@ -148,7 +147,7 @@ pub(crate) fn slab_features(
         feature([0.0, d, 0.0], [0.0, d, top], local.back_face),
         feature([w, d, 0.0], [w, d, top], local.back_face),
     ];
-    for &x in needles {
+    for x in scenario.needles.plan().iter().map(|n| n.line) {
         features.push(feature([x, 0.0, 0.0], [x, tip, 0.0], local.needle_paths));
         for y in [0.0, tip] {
             features.push(feature([x, y, 0.0], [x, y, 0.0], local.needle_ends));
