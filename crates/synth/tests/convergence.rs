@@ -34,6 +34,11 @@
 //! refinement 4 is 5.2 µm away, the observed order 1.2. One more does
 //! the same for the first probe on its own slab (refinements 1, 2 and
 //! 3) and fails: refinement 3 is 7.5 µm away.
+//! Another settles that insertion on a locally refined slab
+//! (`SlabGrading::local`) and on four slabs each refined one way more
+//! (path, entry and tip, back face, grading) and asserts the markers
+//! within a tenth of the noise of each; it fails: 1.58 µm for the
+//! grading, 0.96 µm for the back face (session 40).
 //! Another presses each of the paper default's four probes alone, on
 //! the paper default's slab and on the fine paper default's own probe
 //! slabs (`resolution.probe_grading`), against slabs graded once more
