@@ -19,7 +19,9 @@ use rstar::primitives::{GeomWithData, Rectangle};
 use crate::error::SynthError;
 use crate::grid::{NEO_HOOKEAN_GRADING_LEVELS, PLANE_GRADING_LEVELS, grade, grid_lines};
 use crate::scenario::{Scenario, SlabGrading};
-use crate::slab_mesh::{Span, grade_plan, layered_slab, local_slab, slab_features, upper_planes};
+use crate::slab_mesh::{
+    MaterialPaths, Span, grade_plan, layered_slab, local_slab, slab_features, upper_planes,
+};
 
 /// The meshed phantom.
 pub(crate) struct Body {
@@ -66,9 +68,12 @@ impl Body {
     /// graded as its `resolution.slab_grading` asks and covering `span`
     /// of it (`slab_mesh`); otherwise plane strain, the grid graded towards
     /// the probe edges `x_edges`, the sides and the front and back faces.
+    /// A locally refined slab is refined towards the needles' material
+    /// `paths` when they are given, towards their lines otherwise.
     pub fn build(
         scenario: &Scenario,
         span: Span,
+        paths: Option<&MaterialPaths>,
         x_lines: &[f64],
         x_edges: &[f64],
         y_lines: &[f64],
@@ -125,7 +130,7 @@ impl Body {
             let mut mesh: Mesh<3> = match &grading.local {
                 None => layered_slab(plan, &planes, span)?,
                 Some(local) => {
-                    let features = slab_features(scenario, x_edges, target, local);
+                    let features = slab_features(scenario, x_edges, target, local, paths);
                     let lines = [&plan.x_lines[..], &plan.y_lines, &planes];
                     let (mesh, largest) = local_slab(lines, &features, local, span)?;
                     element_size = largest;

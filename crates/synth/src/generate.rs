@@ -13,7 +13,9 @@ use crate::camera::TrueCamera;
 use crate::effect::material_nonlinearity::uniaxial_nominal_stress;
 use crate::error::SynthError;
 use crate::frames::{Staging, write_calibration};
-use crate::marker_mesh::{marker_scenario, settle_on};
+use crate::marker_mesh::{
+    follows_paths, insertion_alone, marker_scenario, material_paths, settle_on,
+};
 use crate::needle::{NeedleRun, insert};
 use crate::probe::{Factorisation, ProbeRun, press};
 use crate::probe_mesh::probe_scenario;
@@ -101,11 +103,11 @@ pub fn generate(
     let camera = TrueCamera::new(scenario);
     // The calibration images need no mechanics: they are rendered on the
     // second core while the phantom is meshed, assembled and factorised.
-    let marker_scenario = marker_scenario(scenario);
+    let (ready, along_paths) = marker_meshes(scenario);
     let (worlds, calibration) = rayon::join(
         || -> Result<_, SynthError> {
             let world = World::new(scenario)?;
-            let marker_world = marker_scenario.as_ref().map(World::new).transpose()?;
+            let marker_world = ready.as_ref().map(World::new).transpose()?;
             Ok((world, marker_world))
         },
         || match (&scenario.frames, &staging) {
@@ -198,7 +200,14 @@ pub fn generate(
     // The probe trials (their frames above all) are recorded on the second
     // core while the needles are solved.
     let (needles, probe_trials) = rayon::join(
-        || run_needles(&world, marker_world.as_ref(), &progress),
+        || {
+            run_needles(
+                &world,
+                marker_world.as_ref(),
+                along_paths.as_ref(),
+                &progress,
+            )
+        },
         || {
             jobs(TrialKind::Probe)
                 .par_iter()
@@ -208,7 +217,12 @@ pub fn generate(
                 .collect::<Result<Vec<_>, _>>()
         },
     );
-    let (needles, needle_solves) = needles?;
+    let Needles {
+        runs: needles,
+        solves: needle_solves,
+        marker_mesh_nodes,
+        needle_mesh_nodes,
+    } = needles?;
     let probe_trials = probe_trials?;
     progress(Stage::Write);
     let needle_trials = jobs(TrialKind::Needle)
@@ -248,7 +262,8 @@ pub fn generate(
             elements: world.body.element_count(),
             element_size: world.body.element_size,
             upper_half: world.body.upper_half,
-            marker_mesh_nodes: marker_world.as_ref().map(|w| w.body.nodes.len()),
+            marker_mesh_nodes,
+            needle_mesh_nodes,
             probe_mesh_nodes: probes.iter().filter_map(|r| r.mesh_nodes).collect(),
         },
         stated_noise: stated,
@@ -294,10 +309,10 @@ pub struct TrialResponse {
 pub fn respond(scenario: &Scenario) -> Result<Vec<TrialResponse>, SynthError> {
     scenario.validate(&scenario.name)?;
     let world = World::new(scenario)?;
-    let marker_scenario = marker_scenario(scenario);
-    let marker_world = marker_scenario.as_ref().map(World::new).transpose()?;
+    let (ready, along_paths) = marker_meshes(scenario);
+    let marker_world = ready.as_ref().map(World::new).transpose()?;
     let probes = run_probes(&world, &|_| {})?;
-    let (needles, _) = run_needles(&world, marker_world.as_ref(), &|_| {})?;
+    let needles = run_needles(&world, marker_world.as_ref(), along_paths.as_ref(), &|_| {})?.runs;
     let probe_days: Vec<f64> = probes.iter().map(|r| r.probe.day).collect();
     let needle_days: Vec<f64> = needles.iter().map(|r| r.plan.day).collect();
     Ok(campaign_order(&probe_days, &needle_days)
@@ -447,13 +462,37 @@ fn needle_plans(scenario: &Scenario) -> Vec<crate::scenario::NeedlePlan> {
     plans
 }
 
+/// The scenario of the marker mesh (`marker_mesh`), if `scenario` has
+/// one: to be meshed before the needles are placed, or (refined locally)
+/// for each along the material path it is placed on.
+fn marker_meshes(scenario: &Scenario) -> (Option<Scenario>, Option<Scenario>) {
+    match marker_scenario(scenario) {
+        Some(fine) if follows_paths(&fine) => (None, Some(fine)),
+        fine => (fine, None),
+    }
+}
+
+/// The needle trials, solved.
+struct Needles {
+    runs: Vec<NeedleRun>,
+    /// Right-hand sides solved (see [`Summary::needle_solves`]).
+    solves: usize,
+    /// Nodes of the mesh they were settled on, if one for all.
+    marker_mesh_nodes: Option<usize>,
+    /// Nodes of the mesh each was settled on, if each on its own.
+    needle_mesh_nodes: Vec<usize>,
+}
+
 /// The needle trials placed on `world`, and settled on `marker_world`
-/// when the scenario has one (`marker_mesh`); with the linear solves made.
+/// when the scenario has one (`marker_mesh`), or each on a marker mesh
+/// of `along_paths` refined along its own material path on `world`; with
+/// the linear solves made.
 fn run_needles(
     world: &World,
     marker_world: Option<&World>,
+    along_paths: Option<&Scenario>,
     progress: &(impl Fn(Stage) + Sync),
-) -> Result<(Vec<NeedleRun>, usize), SynthError> {
+) -> Result<Needles, SynthError> {
     let scenario = world.scenario;
     let plans = needle_plans(scenario);
     let mut days: Vec<f64> = plans.iter().map(|p| p.day).collect();
@@ -477,12 +516,33 @@ fn run_needles(
         scenario.resolution.depth_step,
     )?;
     let mut solves = runs.iter().map(|r| r.solves).sum();
+    let mut marker_mesh_nodes = None;
+    let mut needle_mesh_nodes = Vec::new();
     if let Some(fine) = marker_world {
         solves += settle_on(fine, &mut runs)?;
+        marker_mesh_nodes = Some(fine.body.nodes.len());
+    }
+    if let Some(fine) = along_paths {
+        // One slab per insertion, refined along its own path: one slab
+        // along every path grows with their number (the fine paper
+        // default's ten: 2.9 M dofs against 0.7 M for one). One at a time,
+        // since each factorisation takes gigabytes; each settles its
+        // states in parallel.
+        for run in runs.iter_mut() {
+            let alone = insertion_alone(fine, &run.plan);
+            let own = World::along(&alone, &material_paths(std::slice::from_ref(run)))?;
+            solves += settle_on(&own, std::slice::from_mut(run))?;
+            needle_mesh_nodes.push(own.body.nodes.len());
+        }
     }
     progress(Stage::Needles {
         done: days.len(),
         total: days.len(),
     });
-    Ok((runs, solves))
+    Ok(Needles {
+        runs,
+        solves,
+        marker_mesh_nodes,
+        needle_mesh_nodes,
+    })
 }

@@ -36,6 +36,7 @@
 //! planes as faces.
 
 use std::collections::{HashMap, HashSet};
+use std::rc::Rc;
 
 /// A place that wants small elements: an axis-aligned box (a point, a
 /// segment along an axis, a rectangle) and the size there.
@@ -105,6 +106,13 @@ impl Cell {
         midpoint(self.lo, self.hi)
     }
 
+    fn diagonal(&self) -> f64 {
+        (0..3)
+            .map(|a| (self.hi[a] - self.lo[a]).powi(2))
+            .sum::<f64>()
+            .sqrt()
+    }
+
     fn distance(&self, f: &Feature) -> f64 {
         (0..3)
             .map(|a| (f.lo[a] - self.hi[a]).max(self.lo[a] - f.hi[a]).max(0.0))
@@ -153,17 +161,18 @@ impl Cell {
 /// towards `features` with cells at most `grading` times their distance
 /// from a feature (and no smaller than its size).
 pub(crate) fn mesh_locally(lines: [&[f64]; 3], features: &[Feature], grading: f64) -> LocalMesh {
-    let wanted = |c: &Cell| {
-        features
-            .iter()
-            .map(|f| f.size.max(grading * c.distance(f)))
-            .fold(f64::INFINITY, f64::min)
-    };
-    let mut pending = Vec::new();
+    let mut leaves = refine(grid_cells(lines), features, grading);
+    let corners = balance(&mut leaves);
+    tetrahedralise(&leaves, &corners)
+}
+
+/// The cells of the tensor grid `lines`.
+fn grid_cells(lines: [&[f64]; 3]) -> Vec<Cell> {
+    let mut cells = Vec::new();
     for z in lines[2].windows(2) {
         for y in lines[1].windows(2) {
             for x in lines[0].windows(2) {
-                pending.push(Cell {
+                cells.push(Cell {
                     lo: [x[0], y[0], z[0]],
                     hi: [x[1], y[1], z[1]],
                     index: [0; 3],
@@ -171,17 +180,51 @@ pub(crate) fn mesh_locally(lines: [&[f64]; 3], features: &[Feature], grading: f6
             }
         }
     }
+    cells
+}
+
+/// The leaves of the octrees on `cells` split until no side exceeds
+/// $\min_f \max(h_f, g\,d_f)$.
+fn refine(cells: Vec<Cell>, features: &[Feature], grading: f64) -> Vec<Cell> {
+    let wanted_from = |c: &Cell, f: &Feature| f.size.max(grading * c.distance(f));
+    let all: Rc<[usize]> = (0..features.len()).collect();
+    let mut pending: Vec<_> = cells.into_iter().map(|c| (c, all.clone())).collect();
     let mut leaves = Vec::with_capacity(pending.len());
-    while let Some(cell) = pending.pop() {
+    while let Some((cell, candidates)) = pending.pop() {
+        let wanted = candidates
+            .iter()
+            .map(|&f| wanted_from(&cell, &features[f]))
+            .fold(f64::INFINITY, f64::min);
         // A side within rounding of the wanted size is not split again.
-        if cell.side() > wanted(&cell) * (1.0 + 1e-9) {
-            cell.split(&mut pending);
-        } else {
+        if cell.side() <= wanted * (1.0 + 1e-9) {
             leaves.push(cell);
+            continue;
         }
+        // A child is no farther than d_f + the cell's diagonal from a
+        // feature f at distance d_f from the cell, so it wants no more
+        // than `bound`; a feature that wants more than that of the whole
+        // cell (and no child is nearer to it) cannot set a child's size
+        // and is dropped for the children. The leaves are the same (unit
+        // test below), and a cell's cost grows with the features near
+        // it, not with all of them.
+        let diagonal = cell.diagonal();
+        let bound = candidates
+            .iter()
+            .map(|&f| {
+                let f = &features[f];
+                f.size.max(grading * (cell.distance(f) + diagonal))
+            })
+            .fold(f64::INFINITY, f64::min);
+        let kept: Rc<[usize]> = candidates
+            .iter()
+            .copied()
+            .filter(|&f| wanted_from(&cell, &features[f]) <= bound)
+            .collect();
+        let mut children = Vec::with_capacity(8);
+        cell.split(&mut children);
+        pending.extend(children.into_iter().map(|c| (c, kept.clone())));
     }
-    let corners = balance(&mut leaves);
-    tetrahedralise(&leaves, &corners)
+    leaves
 }
 
 /// Splits `leaves` until no edge carries a neighbour's corner at its
@@ -464,6 +507,56 @@ mod tests {
                 finest <= f.size && finest > 0.5 * f.size,
                 "{finest} for {f:?}"
             );
+        }
+    }
+
+    /// The refinement without dropping features: every cell split until no
+    /// side exceeds the size every feature wants of it.
+    fn refine_without_pruning(cells: Vec<Cell>, features: &[Feature], grading: f64) -> Vec<Cell> {
+        let mut pending = cells;
+        let mut leaves = Vec::new();
+        while let Some(cell) = pending.pop() {
+            let wanted = features
+                .iter()
+                .map(|f| f.size.max(grading * cell.distance(f)))
+                .fold(f64::INFINITY, f64::min);
+            if cell.side() > wanted * (1.0 + 1e-9) {
+                cell.split(&mut pending);
+            } else {
+                leaves.push(cell);
+            }
+        }
+        leaves
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(24))]
+
+        /// Dropping the features that cannot set a child's size leaves the
+        /// same leaves, in the same order, for any scatter of features.
+        #[test]
+        fn pruning_the_features_leaves_the_same_cells(
+            boxes in proptest::collection::vec(
+                ([0.0..2.0f64, 0.0..1.0f64, 0.0..1.0f64], [0.0..0.3f64, 0.0..0.3f64, 0.0..0.3f64], 3..7u32),
+                1..40,
+            ),
+            grading in 0.25..4.0f64,
+        ) {
+            let features: Vec<Feature> = boxes
+                .iter()
+                .map(|&(lo, extent, level)| Feature {
+                    lo,
+                    hi: std::array::from_fn(|a| lo[a] + extent[a]),
+                    size: 0.5f64.powi(level as i32),
+                })
+                .collect();
+            let cells = grid_cells([&[0.0, 1.0, 1.25, 2.0], &[0.0, 0.5, 1.0], &[0.0, 1.0]]);
+            let pruned = refine(cells.clone(), &features, grading);
+            let plain = refine_without_pruning(cells, &features, grading);
+            proptest::prop_assert_eq!(pruned.len(), plain.len());
+            for (a, b) in pruned.iter().zip(&plain) {
+                proptest::prop_assert!(a.lo == b.lo && a.hi == b.hi && a.index == b.index);
+            }
         }
     }
 }

@@ -172,6 +172,10 @@ impl SlabGrading {
 /// $\max(h_f, g\,d_f)$ for every feature $f$, at distance $d_f$ with
 /// $h_f$ the marker spacing over the refinement, halved `levels` times.
 /// The features are where the slab's displacement is singular or steep.
+/// In `resolution.marker_grading` the needle's features are where the
+/// placement found its loads in the material, and each insertion is
+/// settled on a slab of its own (`marker_mesh`); elsewhere they are on
+/// the needle's line.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LocalRefinement {
@@ -186,6 +190,10 @@ pub struct LocalRefinement {
     pub back_face: usize,
     /// Levels at the edges of every probe on the front face.
     pub probe_edges: usize,
+    /// Levels everywhere: the largest cell, far from every feature, is
+    /// the grid's cell halved this many times (0: the grid's cell).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub far_field: usize,
     /// The grading $g$: the largest cell over its distance to a feature;
     /// smaller is finer. 0.25 to 4.
     pub grading: f64,
@@ -436,6 +444,7 @@ impl Scenario {
                         local.needle_ends,
                         local.back_face,
                         local.probe_edges,
+                        local.far_field,
                     ];
                     c.check(
                         levels.iter().all(|&l| l <= SlabGrading::MAX_LEVELS),

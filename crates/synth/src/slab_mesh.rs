@@ -123,40 +123,159 @@ pub(crate) fn layered_slab(
     Ok(linear.to_quadratic()?)
 }
 
+/// Where the needles' loads acted in the material, from a placement on
+/// another mesh of the slab: for each insertion and each of its loaded
+/// states, the material line of its shaft in the mid-plane (x, y), from
+/// its entry on the front face to its tip.
+///
+/// The tissue the needle holds is carried with it: on the paper default's
+/// last insertion the material entry point moves 3.6 mm sideways while
+/// the front face is drawn in, so features on the needle's line leave
+/// the entry's rim crossing cells graded from a point millimetres away,
+/// and the base force changes by up to 3e-4 from one mesh to the next
+/// with no trend (`docs/truth-world.md`, The 3-D slab).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub(crate) struct MaterialPaths {
+    /// Insertions, their states, the points of each state's line.
+    pub insertions: Vec<Vec<Vec<[f64; 2]>>>,
+}
+
 /// The places `local` refines the slab's upper half towards: the path
 /// of every needle of `scenario` on the mid-plane (its entry and final
 /// tip finer), the edges of the probes `probe_edges` on the front face,
-/// and the edges of the clamped back face with the top face and the
-/// sides; sizes `target` halved as many levels as `local` asks.
+/// the edges of the clamped back face with the top face and the sides,
+/// and the whole slab (its far field); sizes `target` halved as many
+/// levels as `local` asks.
+///
+/// With `paths`, a needle's path is every point its shaft's material
+/// line passed through, its entry every point its material entry passed
+/// through and its tip the last state's material tip; without, they are
+/// the needle's line, where it meets the front face and its final tip.
 pub(crate) fn slab_features(
     scenario: &Scenario,
     probe_edges: &[f64],
     target: f64,
     local: &LocalRefinement,
+    paths: Option<&MaterialPaths>,
 ) -> Vec<Feature> {
     let p = &scenario.phantom;
     let (w, d, top) = (p.width, p.depth, 0.5 * p.thickness);
+    let size = |levels: usize| target / (1u64 << levels) as f64;
     let feature = |lo: [f64; 3], hi: [f64; 3], levels: usize| Feature {
         lo,
         hi,
-        size: target / (1u64 << levels) as f64,
+        size: size(levels),
     };
-    let tip = scenario.needles.depth.min(d);
     let mut features = vec![
+        feature([0.0, 0.0, 0.0], [w, d, top], local.far_field),
         feature([0.0, d, top], [w, d, top], local.back_face),
         feature([0.0, d, 0.0], [0.0, d, top], local.back_face),
         feature([w, d, 0.0], [w, d, top], local.back_face),
     ];
-    for x in scenario.needles.plan().iter().map(|n| n.line) {
-        features.push(feature([x, 0.0, 0.0], [x, tip, 0.0], local.needle_paths));
-        for y in [0.0, tip] {
-            features.push(feature([x, y, 0.0], [x, y, 0.0], local.needle_ends));
+    match paths {
+        None => {
+            let tip = scenario.needles.depth.min(d);
+            for x in scenario.needles.plan().iter().map(|n| n.line) {
+                features.push(feature([x, 0.0, 0.0], [x, tip, 0.0], local.needle_paths));
+                for y in [0.0, tip] {
+                    features.push(feature([x, y, 0.0], [x, y, 0.0], local.needle_ends));
+                }
+            }
+        }
+        Some(paths) => {
+            let in_mid_plane = |levels: usize| {
+                move |[lo, hi]: [[f64; 2]; 2]| {
+                    feature([lo[0], lo[1], 0.0], [hi[0], hi[1], 0.0], levels)
+                }
+            };
+            let lines = paths.insertions.iter().flatten().map(Vec::as_slice);
+            let swept = covering_boxes(lines, 0.5 * size(local.needle_paths));
+            features.extend(swept.into_iter().map(in_mid_plane(local.needle_paths)));
+            let entries: Vec<Vec<[f64; 2]>> = paths
+                .insertions
+                .iter()
+                .map(|states| {
+                    states
+                        .iter()
+                        .filter_map(|line| line.first().copied())
+                        .collect()
+                })
+                .collect();
+            let entered = covering_boxes(
+                entries.iter().map(Vec::as_slice),
+                0.5 * size(local.needle_ends),
+            );
+            features.extend(entered.into_iter().map(in_mid_plane(local.needle_ends)));
+            let tips = paths
+                .insertions
+                .iter()
+                .filter_map(|states| states.last()?.last());
+            features.extend(tips.map(|&t| in_mid_plane(local.needle_ends)([t, t])));
         }
     }
     for &x in probe_edges {
         features.push(feature([x, 0.0, 0.0], [x, 0.0, top], local.probe_edges));
     }
     features
+}
+
+/// Boxes (lower and upper corners) that together cover the polylines
+/// `lines` and lie within a `pixel` of them: the pixels of a grid of that
+/// size that the lines pass through, merged into runs along x, and runs
+/// of equal extent in successive rows merged along y. A few boxes stand
+/// for the thousands of segments of every state's line.
+pub(crate) fn covering_boxes<'a>(
+    lines: impl Iterator<Item = &'a [[f64; 2]]>,
+    pixel: f64,
+) -> Vec<[[f64; 2]; 2]> {
+    let mut pixels = Vec::new();
+    let mut mark = |q: [f64; 2]| pixels.push(q.map(|c| (c / pixel).floor() as i64));
+    for line in lines {
+        for &vertex in line {
+            mark(vertex);
+        }
+        for pair in line.windows(2) {
+            let length =
+                ((pair[1][0] - pair[0][0]).powi(2) + (pair[1][1] - pair[0][1]).powi(2)).sqrt();
+            // Samples a quarter pixel apart: every point of the line is
+            // within an eighth of a pixel of a marked one.
+            let steps = (4.0 * length / pixel).ceil().max(1.0) as usize;
+            for k in 1..steps {
+                let t = k as f64 / steps as f64;
+                mark(std::array::from_fn(|c| {
+                    pair[0][c] + t * (pair[1][c] - pair[0][c])
+                }));
+            }
+        }
+    }
+    // Runs along x within each row: (first column, last column, row).
+    pixels.sort_unstable_by_key(|&[i, j]| (j, i));
+    pixels.dedup();
+    let mut runs: Vec<(i64, i64, i64)> = Vec::new();
+    for &[i, j] in &pixels {
+        match runs.last_mut() {
+            Some(run) if run.2 == j && run.1 + 1 == i => run.1 = i,
+            _ => runs.push((i, i, j)),
+        }
+    }
+    // Equal runs in successive rows: one box.
+    runs.sort_unstable();
+    let mut boxes: Vec<(i64, i64, i64, i64)> = Vec::new();
+    for (i0, i1, j) in runs {
+        match boxes.last_mut() {
+            Some(b) if (b.0, b.1) == (i0, i1) && b.3 + 1 == j => b.3 = j,
+            _ => boxes.push((i0, i1, j, j)),
+        }
+    }
+    boxes
+        .into_iter()
+        .map(|(i0, i1, j0, j1)| {
+            [
+                [i0 as f64 * pixel, j0 as f64 * pixel],
+                [(i1 + 1) as f64 * pixel, (j1 + 1) as f64 * pixel],
+            ]
+        })
+        .collect()
 }
 
 /// The Tet10 slab of the octree over the grid `lines` (x, y and the
@@ -263,5 +382,63 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn covering_boxes_hold_the_lines_and_stay_within_a_pixel_of_them() {
+        let pixel = 0.1;
+        // A line along y, a bent one, and a short one near the corner.
+        let lines: Vec<Vec<[f64; 2]>> = vec![
+            vec![[1.05, 0.0], [1.05, 2.0]],
+            vec![[2.0, 0.0], [1.7, 0.6], [1.65, 2.0]],
+            vec![[0.01, 0.01], [0.02, 0.03]],
+        ];
+        let boxes = covering_boxes(lines.iter().map(Vec::as_slice), pixel);
+        // To rounding: a pixel's bounds are its index times the pixel.
+        let inside = |q: [f64; 2], b: &[[f64; 2]; 2]| {
+            (0..2).all(|c| b[0][c] - 1e-12 <= q[c] && q[c] <= b[1][c] + 1e-12)
+        };
+        let along = |line: &[[f64; 2]], n: usize| -> Vec<[f64; 2]> {
+            line.windows(2)
+                .flat_map(|w| {
+                    (0..=n).map(move |k| {
+                        let t = k as f64 / n as f64;
+                        [
+                            w[0][0] + t * (w[1][0] - w[0][0]),
+                            w[0][1] + t * (w[1][1] - w[0][1]),
+                        ]
+                    })
+                })
+                .collect()
+        };
+        let dense: Vec<[f64; 2]> = lines.iter().flat_map(|l| along(l, 400)).collect();
+        for q in &dense {
+            assert!(
+                boxes.iter().any(|b| inside(*q, b)),
+                "{q:?} is uncovered by {boxes:?}"
+            );
+        }
+        // Every pixel of a box has a point of a line within it (to the
+        // eighth of a pixel the sampling allows).
+        for b in &boxes {
+            let (nx, ny) = (
+                ((b[1][0] - b[0][0]) / pixel).round() as usize,
+                ((b[1][1] - b[0][1]) / pixel).round() as usize,
+            );
+            for i in 0..nx {
+                for j in 0..ny {
+                    let lo = [b[0][0] + i as f64 * pixel, b[0][1] + j as f64 * pixel];
+                    let near = dense.iter().any(|q| {
+                        (0..2)
+                            .all(|c| q[c] >= lo[c] - 0.125 * pixel && q[c] <= lo[c] + 1.125 * pixel)
+                    });
+                    assert!(near, "pixel at {lo:?} of {b:?} holds no line");
+                }
+            }
+        }
+        // The straight line is one box, one pixel wide.
+        let straight = covering_boxes(std::iter::once(&lines[0][..]), pixel);
+        assert_eq!(straight.len(), 1);
+        assert!((straight[0][1][0] - straight[0][0][0] - pixel).abs() < 1e-12);
     }
 }

@@ -60,6 +60,7 @@ fn local_slab() -> Scenario {
             needle_ends: 2,
             back_face: 1,
             probe_edges: 1,
+            far_field: 0,
             grading: 1.0,
         }),
     });

@@ -52,6 +52,11 @@ pub struct Discretisation {
     /// those of the mesh the needle was first placed on.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub marker_mesh_nodes: Option<usize>,
+    /// Nodes of the slab each needle trial was settled on alone, in the
+    /// trials' order, when `resolution.marker_grading` refines locally
+    /// (each along its own material path); empty otherwise.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub needle_mesh_nodes: Vec<usize>,
     /// Nodes of the slab each probe was pressed on alone
     /// (`resolution.probe_grading`), in the probes' order; empty when
     /// they were pressed on the mesh above.

@@ -16,7 +16,7 @@ use crate::body::{Body, Location};
 use crate::effect::material_nonlinearity::NeoHookean;
 use crate::error::SynthError;
 use crate::scenario::Scenario;
-use crate::slab_mesh::Span;
+use crate::slab_mesh::{MaterialPaths, Span};
 use crate::system::{Factorised, Stiffness};
 
 /// The phantom of a scenario, meshed, with everything that does not depend
@@ -46,17 +46,35 @@ impl<'s> World<'s> {
     /// solved as its upper half unless the platform's foundation under its
     /// bottom face breaks the symmetry.
     pub fn new(scenario: &'s Scenario) -> Result<Self, SynthError> {
-        let span = match scenario.effects.platform_friction {
-            Some(_) => Span::Whole,
-            None => Span::UpperHalf,
-        };
-        Self::covering(scenario, span)
+        Self::covering(scenario, Self::span(scenario))
     }
 
     /// [`World::new`] with the slab's mesh covering `span` of it (the
     /// upper half is the whole's solution only for a symmetric scenario:
     /// without `platform_friction`).
     pub fn covering(scenario: &'s Scenario, span: Span) -> Result<Self, SynthError> {
+        Self::build(scenario, span, None)
+    }
+
+    /// [`World::new`] with a locally refined slab (`SlabGrading::local`)
+    /// refined towards the needles' material `paths`, found on another
+    /// mesh, instead of their lines.
+    pub fn along(scenario: &'s Scenario, paths: &MaterialPaths) -> Result<Self, SynthError> {
+        Self::build(scenario, Self::span(scenario), Some(paths))
+    }
+
+    fn span(scenario: &Scenario) -> Span {
+        match scenario.effects.platform_friction {
+            Some(_) => Span::Whole,
+            None => Span::UpperHalf,
+        }
+    }
+
+    fn build(
+        scenario: &'s Scenario,
+        span: Span,
+        paths: Option<&MaterialPaths>,
+    ) -> Result<Self, SynthError> {
         let p = &scenario.phantom;
         let edges: Vec<f64> = scenario
             .probes
@@ -71,7 +89,7 @@ impl<'s> World<'s> {
             .as_ref()
             .map(|l| l.boundaries.clone())
             .unwrap_or_default();
-        let body = Body::build(scenario, span, &x_lines, &edges, &y_lines, |y| {
+        let body = Body::build(scenario, span, paths, &x_lines, &edges, &y_lines, |y| {
             layers.as_ref().map_or(0, |l| l.layer_of(y))
         })?;
         let tol = 1e-9 * p.depth;

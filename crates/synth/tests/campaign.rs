@@ -7,7 +7,9 @@ use std::path::Path;
 
 use needle_data::{TrialKind, read_bundle};
 use needle_synth::truth::Discretisation;
-use needle_synth::{EffectId, Effects, Scenario, SlabGrading, SynthError, generate, respond};
+use needle_synth::{
+    EffectId, Effects, LocalRefinement, Scenario, SlabGrading, SynthError, generate, respond,
+};
 
 /// The paper phantom with a coarse mesh, few markers, short trials.
 fn small() -> Scenario {
@@ -92,7 +94,7 @@ fn differing_and_expected<'a>(
 /// With `resolution.marker_grading` the needle trials are settled on the
 /// finer mesh: their tracks and tool samples come from there, and the
 /// probes' stay on the placement mesh; the truth file says how large the
-/// finer mesh was.
+/// finer mesh was (or, refined locally, each insertion's own).
 #[test]
 fn a_slab_campaign_settles_its_needles_on_its_marker_mesh() {
     let mut placed = small();
@@ -116,14 +118,41 @@ fn a_slab_campaign_settles_its_needles_on_its_marker_mesh() {
         (mesh.nodes, mesh.elements)
     );
     assert!(finer_mesh.marker_mesh_nodes.unwrap() > 2 * mesh.nodes);
-    let (differing, needle_files) = differing_and_expected(&alone, &finer, |name| {
-        name.contains("needle") && (name.contains("markers") || name.contains("tool"))
+    // Refined locally, each insertion is settled on a slab of its own,
+    // along its own path.
+    let mut along_paths = placed.clone();
+    along_paths.resolution.marker_grading = Some(SlabGrading {
+        faces: 0,
+        needle_lines: 0,
+        mid_plane: 0,
+        top_face: 0,
+        probe_edges: 0,
+        local: Some(LocalRefinement {
+            needle_paths: 2,
+            needle_ends: 3,
+            back_face: 1,
+            probe_edges: 0,
+            far_field: 0,
+            grading: 1.0,
+        }),
     });
-    assert!(!needle_files.is_empty());
+    let (own, own_mesh) = generated(&along_paths, dir.path(), "own");
+    assert_eq!(own_mesh.marker_mesh_nodes, None);
     assert_eq!(
-        differing, needle_files,
-        "only the needles' tracks and tool samples change"
+        own_mesh.needle_mesh_nodes.len(),
+        placed.needles.plan().len()
     );
+    assert!(own_mesh.needle_mesh_nodes.iter().all(|&n| n > mesh.nodes));
+    for settled in [&finer, &own] {
+        let (differing, needle_files) = differing_and_expected(&alone, settled, |name| {
+            name.contains("needle") && (name.contains("markers") || name.contains("tool"))
+        });
+        assert!(!needle_files.is_empty());
+        assert_eq!(
+            differing, needle_files,
+            "only the needles' tracks and tool samples change"
+        );
+    }
 }
 
 /// With `resolution.probe_grading` each probe's tracks and tool samples

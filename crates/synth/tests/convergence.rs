@@ -34,11 +34,10 @@
 //! refinement 4 is 5.2 µm away, the observed order 1.2. One more does
 //! the same for the first probe on its own slab (refinements 1, 2 and
 //! 3) and fails: refinement 3 is 7.5 µm away.
-//! Another settles that insertion on a locally refined slab
-//! (`SlabGrading::local`) and on four slabs each refined one way more
-//! (path, entry and tip, back face, grading) and asserts the markers
-//! within a tenth of the noise of each; it fails: 1.58 µm for the
-//! grading, 0.96 µm for the back face (session 40).
+//! Another settles that insertion on a slab refined locally along its
+//! material path (`SlabGrading::local`) and on six slabs each refined one
+//! way more (path, entry and tip, back face, far field, grading, layers)
+//! and asserts the markers within a tenth of the noise of each.
 //! Another presses each of the paper default's four probes alone, on
 //! the paper default's slab and on the fine paper default's own probe
 //! slabs (`resolution.probe_grading`), against slabs graded once more
@@ -604,14 +603,14 @@ fn extrapolate_in_plane(
 }
 
 /// The last insertion of the fine paper default settled on a slab meshed
-/// locally as `local` says (`local_mesh`), at in-plane refinement 2 with
-/// four layers (cells of 1.875 mm far from every feature), placed on the
-/// tensor slab of that refinement.
-fn settled_locally(local: LocalRefinement) -> TrialResponse {
+/// locally as `local` says (`local_mesh`) along its material path, at
+/// in-plane refinement 2 with `layers` layers (cells of 1.875 mm far from
+/// every feature), placed on the tensor slab of that refinement.
+fn settled_locally(local: LocalRefinement, layers: usize) -> TrialResponse {
     let fine = Scenario::paper_default_fine();
     let mut s = campaign_insertion_alone(&fine, fine.needles.plan().len() - 1);
     s.resolution.refinement = 2;
-    s.resolution.layers = 4;
+    s.resolution.layers = layers;
     s.resolution.slab_grading = Some(SlabGrading {
         faces: 1,
         needle_lines: 1,
@@ -629,16 +628,18 @@ fn settled_locally(local: LocalRefinement) -> TrialResponse {
 }
 
 #[test]
-#[ignore = "about four minutes: the last insertion on five locally refined slabs"]
+#[ignore = "about ten minutes and 15 GB: the last insertion on seven locally refined slabs"]
 fn a_locally_refined_slab_is_within_a_tenth_of_the_marker_noise_of_each_finer_one() {
     let sigma = Scenario::paper_default_fine().sensors.marker_sigma;
     let base = LocalRefinement {
         needle_paths: 2,
         needle_ends: 4,
-        back_face: 2,
+        back_face: 3,
         probe_edges: 0,
-        grading: 1.0,
+        far_field: 0,
+        grading: 0.7,
     };
+    let layers = 4;
     let finer = [
         (
             "path: one level more",
@@ -646,6 +647,7 @@ fn a_locally_refined_slab_is_within_a_tenth_of_the_marker_noise_of_each_finer_on
                 needle_paths: 3,
                 ..base
             },
+            layers,
         ),
         (
             "entry and tip: two levels more",
@@ -653,30 +655,42 @@ fn a_locally_refined_slab_is_within_a_tenth_of_the_marker_noise_of_each_finer_on
                 needle_ends: 6,
                 ..base
             },
+            layers,
         ),
         (
             "back face: one level more",
             LocalRefinement {
-                back_face: 3,
+                back_face: 4,
                 ..base
             },
+            layers,
         ),
         (
-            "grading 0.7",
+            "far field: one level more",
             LocalRefinement {
-                grading: 0.7,
+                far_field: 1,
                 ..base
             },
+            layers,
         ),
+        (
+            "grading 0.5",
+            LocalRefinement {
+                grading: 0.5,
+                ..base
+            },
+            layers,
+        ),
+        ("six layers", base, 6),
     ];
     let (columns, _) = Scenario::paper_default_fine().phantom.markers;
-    let reference = settled_locally(base);
+    let reference = settled_locally(base, layers);
     println!(
         "| refined | largest marker difference | where (state, column, row) | force, relative |"
     );
     let mut worst: f64 = 0.0;
-    for (name, local) in finer {
-        let trial = settled_locally(local);
+    for (name, local, layers) in finer {
+        let trial = settled_locally(local, layers);
         let (gap, state, marker) = worst_marker(&reference.markers, &trial.markers);
         let force = reference
             .force

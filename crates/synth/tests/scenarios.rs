@@ -198,12 +198,20 @@ fn out_of_range_value_names_the_dotted_field() {
         needle_ends: 4,
         back_face: 2,
         probe_edges: 2,
+        far_field: 0,
         grading: 1.0,
     };
     let bad_local = [
         (
             LocalRefinement {
                 needle_ends: SlabGrading::MAX_LEVELS + 1,
+                ..local
+            },
+            "local",
+        ),
+        (
+            LocalRefinement {
+                far_field: SlabGrading::MAX_LEVELS + 1,
                 ..local
             },
             "local",
