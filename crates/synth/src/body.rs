@@ -83,11 +83,15 @@ impl Body {
         let r = &scenario.resolution;
         let spacing_x = p.width / (p.markers.0 - 1) as f64;
         let spacing_y = p.depth / (p.markers.1 - 1) as f64;
-        let target = spacing_x.min(spacing_y) / r.refinement as f64;
-        let mut xs = grid_lines(p.width, p.markers.0, x_lines, target);
-        let mut ys = grid_lines(p.depth, p.markers.1, y_lines, target);
         let slab = scenario.effects.out_of_plane.is_some();
         let grading = r.slab_grading.unwrap_or(SlabGrading::DEFAULT);
+        let refinement = match grading.local {
+            Some(local) if slab => local.refinement.unwrap_or(r.refinement),
+            _ => r.refinement,
+        };
+        let target = spacing_x.min(spacing_y) / refinement as f64;
+        let mut xs = grid_lines(p.width, p.markers.0, x_lines, target);
+        let mut ys = grid_lines(p.depth, p.markers.1, y_lines, target);
         if slab {
             let needles: Vec<f64> = scenario.needles.plan().iter().map(|n| n.line).collect();
             let extent = (p.width, p.depth);

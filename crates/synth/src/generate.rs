@@ -524,10 +524,10 @@ fn run_needles(
     }
     if let Some(fine) = along_paths {
         // One slab per insertion, refined along its own path: one slab
-        // along every path grows with their number (the fine paper
-        // default's ten: 2.9 M dofs against 0.7 M for one). One at a time,
-        // since each factorisation takes gigabytes; each settles its
-        // states in parallel.
+        // along every path grows with their number (along the fine paper
+        // default's ten needle lines, 2.9 M dofs against 0.7 M for one).
+        // One at a time, since each factorisation takes gigabytes; each
+        // settles its states in parallel.
         for run in runs.iter_mut() {
             let alone = insertion_alone(fine, &run.plan);
             let own = World::along(&alone, &material_paths(std::slice::from_ref(run)))?;

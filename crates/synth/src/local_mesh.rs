@@ -39,7 +39,7 @@ use std::collections::{HashMap, HashSet};
 use std::rc::Rc;
 
 /// A place that wants small elements: an axis-aligned box (a point, a
-/// segment along an axis, a rectangle) and the size there.
+/// segment along an axis, a rectangle, a block) and the size there.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Feature {
     /// Lower corner.

@@ -6,8 +6,8 @@ use crate::effect::{
     MaterialStiffening, OutOfPlane, PlatformFriction, TipCuttingForce, VelocityDependentFriction,
 };
 use crate::scenario::{
-    CompressionTest, Needles, PhantomSpec, ProbeTrial, Resolution, Scenario, Sensors, Shaft,
-    SlabGrading,
+    CompressionTest, LocalRefinement, Needles, PhantomSpec, ProbeTrial, Resolution, Scenario,
+    Sensors, Shaft, SlabGrading,
 };
 
 /// In-plane refinement of the plane-strain truths (elements of a sixth
@@ -41,31 +41,43 @@ pub(crate) const PAPER_SLAB_GRADING: SlabGrading = SlabGrading {
 };
 
 /// The mesh the fine paper default first places its needle on: as the
-/// paper default's, with two levels towards each needle line. Since the
-/// needle is settled on [`PAPER_FINE_MARKER_GRADING`] it only gives the
-/// consistency iteration its start there (started on the paper default's
-/// slab instead, the convergence test's distances from the reference
-/// change by at most 0.01 um); it chose where the loads went from session 36 to 37, when
-/// two levels brought the markers from 1.12 um to 0.66 um of the
-/// reference (`docs/truth-world.md`, The 3-D slab).
+/// paper default's, with two levels towards each needle line. The needle
+/// is then settled on [`PAPER_FINE_MARKER_GRADING`], so this mesh gives
+/// the consistency iteration its start there and the marker slab the
+/// material path to refine along. (It chose where the loads went from
+/// session 36 to 37, when two levels brought the markers from 1.12 um to
+/// 0.66 um of that time's reference; `docs/truth-world.md`, The 3-D
+/// slab.)
 pub(crate) const PAPER_FINE_SLAB_GRADING: SlabGrading = SlabGrading {
     needle_lines: 2,
     ..PAPER_SLAB_GRADING
 };
 
-/// The mesh the fine paper default settles its needle trials on and reads
-/// their markers on: five levels towards the faces and sides, three
-/// towards each needle line, two towards the mid-plane and the top face.
-/// With one level less towards the needle lines and the mid-plane the
-/// convergence test's insertion with the tip peak is 1.6 um from the
-/// reference; with one level less towards the faces too, 1.8 um.
+/// The slab each needle trial of the fine paper default is settled on
+/// and its markers and force read on, one slab per insertion: an octree
+/// along the insertion's material path (`SlabGrading::local`,
+/// `marker_mesh`) on the grid of refinement 2 (cells 1.875 mm, as far
+/// apart as the four layers' node planes), two levels along the path,
+/// four at the entry and the tip, three at the back face's edges,
+/// grading 0.7. On the campaign's last insertion, each of six slabs
+/// refined one way more (path, entry and tip, back face, far field,
+/// grading, layers) moves the markers by at most 0.69 um, 0.086 of the
+/// noise (`docs/truth-world.md`, The 3-D slab, session 41).
 pub(crate) const PAPER_FINE_MARKER_GRADING: SlabGrading = SlabGrading {
-    faces: 5,
-    needle_lines: 3,
-    mid_plane: 2,
-    top_face: 2,
+    faces: 0,
+    needle_lines: 0,
+    mid_plane: 0,
+    top_face: 0,
     probe_edges: 0,
-    local: None,
+    local: Some(LocalRefinement {
+        refinement: Some(2),
+        needle_paths: 2,
+        needle_ends: 4,
+        back_face: 3,
+        probe_edges: 0,
+        far_field: 0,
+        grading: 0.7,
+    }),
 };
 
 /// The slab each probe of the fine paper default is pressed on alone:
@@ -217,19 +229,18 @@ impl Scenario {
     }
 
     /// The paper's campaign with a smaller discretisation error in its
-    /// slab: the needle placed on the slab of [`PAPER_FINE_SLAB_GRADING`]
-    /// first and settled on that of [`PAPER_FINE_MARKER_GRADING`]
+    /// slab: each needle trial placed on the slab of
+    /// [`PAPER_FINE_SLAB_GRADING`] first, then settled on a slab of its
+    /// own refined along its material path, [`PAPER_FINE_MARKER_GRADING`]
     /// (`resolution.marker_grading`, `marker_mesh`), where its markers and
     /// base force are read; each probe pressed on a slab of its own graded
     /// as [`PAPER_FINE_PROBE_GRADING`] (`resolution.probe_grading`,
-    /// `probe_mesh`). On every insertion of its campaign its markers are
-    /// within a tenth of the marker noise of the convergence tests'
-    /// reference at every state (0.66 um at worst), and so are its probes'
-    /// (0.61 um); but that reference is itself up to 7.2 um from a slab of
-    /// half its in-plane element size, and the in-plane size alone, refined
-    /// twice, moves its markers by 5.2 um. It takes some twenty times the
-    /// paper default's time and ten times its memory to generate
-    /// (`docs/truth-world.md`, The 3-D slab).
+    /// `probe_mesh`). On the campaign's last insertion (the worst of the
+    /// paper default's) six slabs each refined one way more move its
+    /// markers by at most 0.69 um, 0.086 of the marker noise; its probes
+    /// are within 0.61 um of slabs graded once more, but their in-plane
+    /// size, refined, moves them by 7.5 um (`docs/truth-world.md`, The
+    /// 3-D slab).
     pub fn paper_default_fine() -> Self {
         let paper = Self::paper_default();
         Scenario {

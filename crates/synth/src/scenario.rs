@@ -179,6 +179,12 @@ impl SlabGrading {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LocalRefinement {
+    /// The grid under the octree: cells the marker spacing over this
+    /// refinement (absent: `resolution.refinement`). The octree halves
+    /// cells along all three axes, so a grid whose cells are twice as
+    /// wide as the layers are thick stays so down to its finest cells.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub refinement: Option<usize>,
     /// Levels along every needle's path, from the front face to its final
     /// tip depth (the line load's field is $\sim \ln r$ towards it).
     pub needle_paths: usize,
@@ -456,6 +462,13 @@ impl Scenario {
                             )
                         },
                     )?;
+                    if let Some(refinement) = local.refinement {
+                        c.check(
+                            (1..=16).contains(&refinement),
+                            &format!("{field}.local.refinement"),
+                            || format!("must be 1 to 16, got {refinement}"),
+                        )?;
+                    }
                     let (lo, hi) = LocalRefinement::GRADING;
                     c.check(
                         (lo..=hi).contains(&local.grading),

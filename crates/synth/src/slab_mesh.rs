@@ -222,8 +222,8 @@ pub(crate) fn slab_features(
 /// Boxes (lower and upper corners) that together cover the polylines
 /// `lines` and lie within a `pixel` of them: the pixels of a grid of that
 /// size that the lines pass through, merged into runs along x, and runs
-/// of equal extent in successive rows merged along y. A few boxes stand
-/// for the thousands of segments of every state's line.
+/// of equal extent in successive rows merged along y: their number grows
+/// with the area the lines sweep, not with their segments.
 pub(crate) fn covering_boxes<'a>(
     lines: impl Iterator<Item = &'a [[f64; 2]]>,
     pixel: f64,

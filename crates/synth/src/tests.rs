@@ -56,6 +56,7 @@ fn local_slab() -> Scenario {
         top_face: 0,
         probe_edges: 0,
         local: Some(LocalRefinement {
+            refinement: None,
             needle_paths: 1,
             needle_ends: 2,
             back_face: 1,
@@ -65,6 +66,35 @@ fn local_slab() -> Scenario {
         }),
     });
     s
+}
+
+/// A locally refined slab's grid takes its own refinement when it states
+/// one, and the scenario's otherwise; `far_field` halves every cell.
+#[test]
+fn a_locally_refined_slab_s_largest_cell_follows_its_refinement_and_far_field() {
+    let s = local_slab();
+    let with = |refinement: Option<usize>, far_field: usize| {
+        let mut t = s.clone();
+        let grading = t.resolution.slab_grading.as_mut().unwrap();
+        let local = grading.local.as_mut().unwrap();
+        local.refinement = refinement;
+        local.far_field = far_field;
+        World::new(&t).unwrap().body.element_size
+    };
+    let scenario_s = with(None, 0);
+    let r = s.resolution.refinement;
+    assert_eq!(with(Some(r), 0), scenario_s);
+    for (refinement, far_field, ratio) in [
+        (Some(2 * r), 0, 0.5),
+        (None, 1, 0.5),
+        (Some(2 * r), 1, 0.25),
+    ] {
+        let largest = with(refinement, far_field);
+        assert!(
+            (largest - ratio * scenario_s).abs() < 1e-12 * scenario_s,
+            "{refinement:?}, {far_field}: {largest} against {scenario_s}"
+        );
+    }
 }
 
 /// The small scenario on the plane, the tensor slab and the local slab.

@@ -128,6 +128,7 @@ fn a_slab_campaign_settles_its_needles_on_its_marker_mesh() {
         top_face: 0,
         probe_edges: 0,
         local: Some(LocalRefinement {
+            refinement: None,
             needle_paths: 2,
             needle_ends: 3,
             back_face: 1,

@@ -194,6 +194,7 @@ fn out_of_range_value_names_the_dotted_field() {
         }
     }
     let local = LocalRefinement {
+        refinement: None,
         needle_paths: 2,
         needle_ends: 4,
         back_face: 2,
@@ -215,6 +216,13 @@ fn out_of_range_value_names_the_dotted_field() {
                 ..local
             },
             "local",
+        ),
+        (
+            LocalRefinement {
+                refinement: Some(0),
+                ..local
+            },
+            "local.refinement",
         ),
         (
             LocalRefinement {
