@@ -657,7 +657,7 @@ fn a_locally_refined_slab_is_within_a_tenth_of_the_marker_noise_of_each_finer_on
         (
             "path: one level more",
             LocalRefinement {
-                needle_paths: 3,
+                needle_paths: base.needle_paths + 1,
                 ..base
             },
             layers,
@@ -665,7 +665,7 @@ fn a_locally_refined_slab_is_within_a_tenth_of_the_marker_noise_of_each_finer_on
         (
             "entry and tip: two levels more",
             LocalRefinement {
-                needle_ends: 6,
+                needle_ends: base.needle_ends + 2,
                 ..base
             },
             layers,
@@ -673,7 +673,7 @@ fn a_locally_refined_slab_is_within_a_tenth_of_the_marker_noise_of_each_finer_on
         (
             "back face: one level more",
             LocalRefinement {
-                back_face: 4,
+                back_face: base.back_face + 1,
                 ..base
             },
             layers,
@@ -681,7 +681,7 @@ fn a_locally_refined_slab_is_within_a_tenth_of_the_marker_noise_of_each_finer_on
         (
             "far field: one level more",
             LocalRefinement {
-                far_field: 1,
+                far_field: base.far_field + 1,
                 ..base
             },
             layers,
