@@ -40,8 +40,10 @@
 //!   With `resolution.marker_grading` the consistency iteration of every
 //!   state goes on from the loads it found, on a finer slab, until the
 //!   needle's placement there is consistent too, and the needle trials'
-//!   markers and base force are read there (`marker_mesh`; the fine paper
-//!   default).
+//!   markers and base force are read there (`marker_mesh`). A finer slab
+//!   refined locally is refined along where the placement put each
+//!   needle's loads in the material, one slab per insertion (the fine
+//!   paper default).
 //!   With `resolution.probe_grading` each probe is pressed on a slab of
 //!   its own, graded towards its edges and factorised with its face held
 //!   (`probe_mesh`).
