@@ -30,6 +30,16 @@
 //! on its even-to-odd diagonal. Every face's triangles are thus a
 //! function of the face alone, and the tetrahedra conform.
 //!
+//! With [`Split::Plan`] the cells are halved along x and y only and the
+//! distances measured in the plan: every layer of grid cells gets the
+//! same quadtree, extruded through the grid's node planes. That suits a
+//! singular line through the thickness (a probe's edge, where the strain
+//! is uniform along z but for the top face) at a fraction of the octree's
+//! cells, and not a needle, whose line load is singular in its
+//! cross-section (`docs/truth-world.md`, The 3-D slab, session 42). The
+//! same rules make its tetrahedra conform: no edge along z carries a
+//! corner, and cells stacked in z have the same plan.
+//!
 //! Written by hand: the mesh generators on crates.io triangulate given
 //! surfaces (tetgen bindings, Delaunay crates) or refine to a global
 //! bound; none grades a box from given features while keeping given grid
@@ -50,6 +60,25 @@ pub(crate) struct Feature {
     pub size: f64,
 }
 
+/// How the cells are halved.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Split {
+    /// Along all three axes; distances in space.
+    Octree,
+    /// Along x and y only; distances in the plan.
+    Plan,
+}
+
+impl Split {
+    /// The axes halved and measured.
+    fn axes(self) -> usize {
+        match self {
+            Split::Octree => 3,
+            Split::Plan => 2,
+        }
+    }
+}
+
 /// A linear tetrahedral mesh: nodes and positively oriented tetrahedra.
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct LocalMesh {
@@ -57,7 +86,7 @@ pub(crate) struct LocalMesh {
     pub nodes: Vec<[f64; 3]>,
     /// Node indices of each tetrahedron.
     pub tetrahedra: Vec<[usize; 4]>,
-    /// The longest side of any octree cell (m).
+    /// The longest side of any cell along the axes halved (m).
     pub largest: f64,
 }
 
@@ -87,8 +116,11 @@ fn key(p: [f64; 3]) -> Key {
 }
 
 impl Cell {
-    fn side(&self) -> f64 {
-        (0..3).map(|a| self.hi[a] - self.lo[a]).fold(0.0, f64::max)
+    /// The longest side along the axes `split` halves.
+    fn side(&self, split: Split) -> f64 {
+        (0..split.axes())
+            .map(|a| self.hi[a] - self.lo[a])
+            .fold(0.0, f64::max)
     }
 
     /// Corner `bits` (bit a set: the upper end along axis a).
@@ -106,29 +138,42 @@ impl Cell {
         midpoint(self.lo, self.hi)
     }
 
-    fn diagonal(&self) -> f64 {
-        (0..3)
+    fn diagonal(&self, split: Split) -> f64 {
+        (0..split.axes())
             .map(|a| (self.hi[a] - self.lo[a]).powi(2))
             .sum::<f64>()
             .sqrt()
     }
 
-    fn distance(&self, f: &Feature) -> f64 {
-        (0..3)
+    fn distance(&self, f: &Feature, split: Split) -> f64 {
+        (0..split.axes())
             .map(|a| (f.lo[a] - self.hi[a]).max(self.lo[a] - f.hi[a]).max(0.0))
             .map(|d| d * d)
             .sum::<f64>()
             .sqrt()
     }
 
-    fn split(&self, out: &mut Vec<Cell>) {
+    fn split(&self, split: Split, out: &mut Vec<Cell>) {
         let m = self.centre();
-        for bits in 0..8 {
+        let halved = |a: usize| a < split.axes();
+        for bits in 0..1 << split.axes() {
             let upper = |a: usize| bits >> a & 1 == 1;
             out.push(Cell {
                 lo: std::array::from_fn(|a| if upper(a) { m[a] } else { self.lo[a] }),
-                hi: std::array::from_fn(|a| if upper(a) { self.hi[a] } else { m[a] }),
-                index: std::array::from_fn(|a| 2 * self.index[a] + upper(a) as u64),
+                hi: std::array::from_fn(|a| {
+                    if upper(a) || !halved(a) {
+                        self.hi[a]
+                    } else {
+                        m[a]
+                    }
+                }),
+                index: std::array::from_fn(|a| {
+                    if halved(a) {
+                        2 * self.index[a] + upper(a) as u64
+                    } else {
+                        self.index[a]
+                    }
+                }),
             });
         }
     }
@@ -159,11 +204,16 @@ impl Cell {
 
 /// The mesh over the tensor grid `lines` (sorted, per axis), refined
 /// towards `features` with cells at most `grading` times their distance
-/// from a feature (and no smaller than its size).
-pub(crate) fn mesh_locally(lines: [&[f64]; 3], features: &[Feature], grading: f64) -> LocalMesh {
-    let mut leaves = refine(grid_cells(lines), features, grading);
-    let corners = balance(&mut leaves);
-    tetrahedralise(&leaves, &corners)
+/// from a feature (and no smaller than its size), halved as `split` says.
+pub(crate) fn mesh_locally(
+    lines: [&[f64]; 3],
+    features: &[Feature],
+    grading: f64,
+    split: Split,
+) -> LocalMesh {
+    let mut leaves = refine(grid_cells(lines), features, grading, split);
+    let corners = balance(&mut leaves, split);
+    tetrahedralise(&leaves, &corners, split)
 }
 
 /// The cells of the tensor grid `lines`.
@@ -185,8 +235,8 @@ fn grid_cells(lines: [&[f64]; 3]) -> Vec<Cell> {
 
 /// The leaves of the octrees on `cells` split until no side exceeds
 /// $\min_f \max(h_f, g\,d_f)$.
-fn refine(cells: Vec<Cell>, features: &[Feature], grading: f64) -> Vec<Cell> {
-    let wanted_from = |c: &Cell, f: &Feature| f.size.max(grading * c.distance(f));
+fn refine(cells: Vec<Cell>, features: &[Feature], grading: f64, split: Split) -> Vec<Cell> {
+    let wanted_from = |c: &Cell, f: &Feature| f.size.max(grading * c.distance(f, split));
     let all: Rc<[usize]> = (0..features.len()).collect();
     let mut pending: Vec<_> = cells.into_iter().map(|c| (c, all.clone())).collect();
     let mut leaves = Vec::with_capacity(pending.len());
@@ -196,7 +246,7 @@ fn refine(cells: Vec<Cell>, features: &[Feature], grading: f64) -> Vec<Cell> {
             .map(|&f| wanted_from(&cell, &features[f]))
             .fold(f64::INFINITY, f64::min);
         // A side within rounding of the wanted size is not split again.
-        if cell.side() <= wanted * (1.0 + 1e-9) {
+        if cell.side(split) <= wanted * (1.0 + 1e-9) {
             leaves.push(cell);
             continue;
         }
@@ -207,12 +257,12 @@ fn refine(cells: Vec<Cell>, features: &[Feature], grading: f64) -> Vec<Cell> {
         // and is dropped for the children. The leaves are the same (unit
         // test below), and a cell's cost grows with the features near
         // it, not with all of them.
-        let diagonal = cell.diagonal();
+        let diagonal = cell.diagonal(split);
         let bound = candidates
             .iter()
             .map(|&f| {
                 let f = &features[f];
-                f.size.max(grading * (cell.distance(f) + diagonal))
+                f.size.max(grading * (cell.distance(f, split) + diagonal))
             })
             .fold(f64::INFINITY, f64::min);
         let kept: Rc<[usize]> = candidates
@@ -221,7 +271,7 @@ fn refine(cells: Vec<Cell>, features: &[Feature], grading: f64) -> Vec<Cell> {
             .filter(|&f| wanted_from(&cell, &features[f]) <= bound)
             .collect();
         let mut children = Vec::with_capacity(8);
-        cell.split(&mut children);
+        cell.split(split, &mut children);
         pending.extend(children.into_iter().map(|c| (c, kept.clone())));
     }
     leaves
@@ -230,7 +280,7 @@ fn refine(cells: Vec<Cell>, features: &[Feature], grading: f64) -> Vec<Cell> {
 /// Splits `leaves` until no edge carries a neighbour's corner at its
 /// quarter and no face one at the centre of its quarter; returns the set
 /// of all corners.
-fn balance(leaves: &mut Vec<Cell>) -> HashSet<Key> {
+fn balance(leaves: &mut Vec<Cell>, split: Split) -> HashSet<Key> {
     loop {
         let corners: HashSet<Key> = leaves
             .iter()
@@ -253,7 +303,7 @@ fn balance(leaves: &mut Vec<Cell>) -> HashSet<Key> {
             };
             if deep_edge || deep_face() {
                 changed = true;
-                cell.split(&mut next);
+                cell.split(split, &mut next);
             } else {
                 next.push(*cell);
             }
@@ -266,7 +316,7 @@ fn balance(leaves: &mut Vec<Cell>) -> HashSet<Key> {
 }
 
 /// Tetrahedra of every leaf (see the module docs), positively oriented.
-fn tetrahedralise(leaves: &[Cell], corners: &HashSet<Key>) -> LocalMesh {
+fn tetrahedralise(leaves: &[Cell], corners: &HashSet<Key>, split: Split) -> LocalMesh {
     let mut index: HashMap<Key, usize> = HashMap::new();
     let mut nodes = Vec::new();
     let mut node = |p: [f64; 3]| {
@@ -278,7 +328,7 @@ fn tetrahedralise(leaves: &[Cell], corners: &HashSet<Key>) -> LocalMesh {
     let mut tetrahedra = Vec::with_capacity(6 * leaves.len());
     let mut largest: f64 = 0.0;
     for cell in leaves {
-        largest = largest.max(cell.side());
+        largest = largest.max(cell.side(split));
         let hanging = Cell::edges()
             .any(|(a, b)| corners.contains(&key(midpoint(cell.corner(a), cell.corner(b)))));
         if !hanging {
@@ -304,7 +354,7 @@ fn tetrahedralise(leaves: &[Cell], corners: &HashSet<Key>) -> LocalMesh {
         }
         let centre = node(cell.centre());
         for (axis, ring) in Cell::faces() {
-            let c: Vec<[f64; 3]> = ring.iter().map(|&b| cell.corner(b)).collect();
+            let c: [[f64; 3]; 4] = ring.map(|b| cell.corner(b));
             let mut points = Vec::with_capacity(8);
             for k in 0..4 {
                 points.push(c[k]);
@@ -313,27 +363,48 @@ fn tetrahedralise(leaves: &[Cell], corners: &HashSet<Key>) -> LocalMesh {
                     points.push(m);
                 }
             }
-            if points.len() > 4 {
+            let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+            let bit = |k: usize, a: usize| (ring[k] >> a & 1) as u64;
+            let mut cut = |c: [[f64; 3]; 4], at: [[u64; 2]; 4]| {
+                let [pa, ps, pb, pt] = diagonal_cut(at).map(|k| node(c[k]));
+                tetrahedra.push([centre, pa, ps, pb]);
+                tetrahedra.push([centre, pa, pb, pt]);
+            };
+            if points.len() == 4 {
+                cut(
+                    c,
+                    std::array::from_fn(|k| [cell.index[u] + bit(k, u), cell.index[v] + bit(k, v)]),
+                );
+            } else if split == Split::Plan && axis != 2 {
+                // A side face beside a finer column: its two halves, as
+                // the finer cells cut theirs (the corners hang at the
+                // middle of its top and bottom edges, not at its centre).
+                let h = if u == 2 { v } else { u };
+                let m = mid(cell.lo[h], cell.hi[h]);
+                for half in 0..2u64 {
+                    let mut c = c;
+                    for (k, corner) in c.iter_mut().enumerate() {
+                        corner[h] = match (half, bit(k, h)) {
+                            (0, 0) => cell.lo[h],
+                            (1, 1) => cell.hi[h],
+                            _ => m,
+                        };
+                    }
+                    let index = |k: usize, a: usize| {
+                        if a == h {
+                            2 * cell.index[h] + half + bit(k, h)
+                        } else {
+                            cell.index[a] + bit(k, a)
+                        }
+                    };
+                    cut(c, std::array::from_fn(|k| [index(k, u), index(k, v)]));
+                }
+            } else {
                 let face_centre = node(midpoint(c[0], c[2]));
                 for k in 0..points.len() {
                     let (p, q) = (points[k], points[(k + 1) % points.len()]);
                     tetrahedra.push([centre, face_centre, node(p), node(q)]);
                 }
-            } else {
-                // The diagonal joins the face's corners whose in-plane
-                // dyadic indices are both even and both odd.
-                let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
-                let even = |k: usize| {
-                    let bits = ring[k];
-                    (cell.index[u] + (bits >> u & 1) as u64).is_multiple_of(2)
-                        && (cell.index[v] + (bits >> v & 1) as u64).is_multiple_of(2)
-                };
-                let start = (0..4).find(|&k| even(k)).expect("one corner is even");
-                let (a, b) = (start, (start + 2) % 4);
-                let (s, t) = ((start + 1) % 4, (start + 3) % 4);
-                let [pa, pb, ps, pt] = [a, b, s, t].map(|k| node(c[k]));
-                tetrahedra.push([centre, pa, ps, pb]);
-                tetrahedra.push([centre, pa, pb, pt]);
             }
         }
     }
@@ -347,6 +418,16 @@ fn tetrahedralise(leaves: &[Cell], corners: &HashSet<Key>) -> LocalMesh {
         tetrahedra,
         largest,
     }
+}
+
+/// The corners of a rectangle, given in order round it with their
+/// in-plane dyadic indices `at`, reordered as (a, s, b, t): its diagonal
+/// a-b joins the corners whose indices are both even and both odd, so
+/// two cells sharing the face cut it alike.
+fn diagonal_cut(at: [[u64; 2]; 4]) -> [usize; 4] {
+    let even = |k: usize| at[k].iter().all(|i| i.is_multiple_of(2));
+    let a = (0..4).find(|&k| even(k)).expect("one corner is even");
+    [a, (a + 1) % 4, (a + 2) % 4, (a + 3) % 4]
 }
 
 /// Six times the signed volume of the tetrahedron `tet`.
@@ -396,9 +477,13 @@ pub(crate) fn mirrored(upper: &LocalMesh) -> LocalMesh {
 mod tests {
     use super::*;
 
-    /// A 2 x 1 x 1 box on a grid of unequal cells, refined towards a
-    /// point on its lower face and a segment inside.
-    fn example() -> (LocalMesh, Vec<Feature>, f64) {
+    const SPLITS: [Split; 2] = [Split::Octree, Split::Plan];
+
+    /// A 2 x 1 x 1 box on a grid of unequal cells, two layers thick,
+    /// refined towards a point on its lower face and a segment inside.
+    const LINES: [&[f64]; 3] = [&[0.0, 1.0, 1.25, 2.0], &[0.0, 0.5, 1.0], &[0.0, 0.375, 1.0]];
+
+    fn example(split: Split) -> (LocalMesh, Vec<Feature>, f64) {
         let features = vec![
             Feature {
                 lo: [0.5, 0.0, 0.0],
@@ -412,11 +497,7 @@ mod tests {
             },
         ];
         let grading = 0.5;
-        let mesh = mesh_locally(
-            [&[0.0, 1.0, 1.25, 2.0], &[0.0, 0.5, 1.0], &[0.0, 1.0]],
-            &features,
-            grading,
-        );
+        let mesh = mesh_locally(LINES, &features, grading, split);
         (mesh, features, grading)
     }
 
@@ -461,21 +542,67 @@ mod tests {
 
     #[test]
     fn the_tetrahedra_fill_the_box_and_conform() {
-        let (mesh, _, _) = example();
-        check_fills_box(&mesh, [0.0; 3], [2.0, 1.0, 1.0]);
-        let mirror = mirrored(&mesh);
-        check_fills_box(&mirror, [0.0, 0.0, -1.0], [2.0, 1.0, 1.0]);
-        assert_eq!(mirror.tetrahedra.len(), 2 * mesh.tetrahedra.len());
-        for p in &mirror.nodes {
-            let image = key([p[0], p[1], 0.0 - p[2]]);
-            assert!(mirror.nodes.iter().any(|q| key(*q) == image), "{p:?}");
+        for split in SPLITS {
+            let (mesh, _, _) = example(split);
+            check_fills_box(&mesh, [0.0; 3], [2.0, 1.0, 1.0]);
+            let mirror = mirrored(&mesh);
+            check_fills_box(&mirror, [0.0, 0.0, -1.0], [2.0, 1.0, 1.0]);
+            assert_eq!(mirror.tetrahedra.len(), 2 * mesh.tetrahedra.len());
+            for p in &mirror.nodes {
+                let image = key([p[0], p[1], 0.0 - p[2]]);
+                assert!(mirror.nodes.iter().any(|q| key(*q) == image), "{p:?}");
+            }
         }
     }
 
     #[test]
+    fn a_plan_split_keeps_the_node_planes_and_one_plan_in_every_layer() {
+        let planes = [0.0, 0.375, 1.0];
+        let (mesh, _, _) = example(Split::Plan);
+        for t in &mesh.tetrahedra {
+            let z = t.map(|n| mesh.nodes[n][2]);
+            let (lo, hi) = (
+                z.iter().copied().fold(f64::INFINITY, f64::min),
+                z.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+            );
+            assert!(
+                planes.windows(2).any(|w| w[0] <= lo && hi <= w[1]),
+                "a tetrahedron from z = {lo} to {hi} crosses a node plane"
+            );
+        }
+        let plan_at = |z: f64| {
+            let mut points: Vec<[u64; 2]> = mesh
+                .nodes
+                .iter()
+                .filter(|p| p[2] == z)
+                .map(|p| [p[0].to_bits(), p[1].to_bits()])
+                .collect();
+            points.sort_unstable();
+            points
+        };
+        let bottom = plan_at(planes[0]);
+        assert!(
+            bottom.len() > 12,
+            "the plan is refined: {} corners",
+            bottom.len()
+        );
+        for z in &planes[1..] {
+            assert_eq!(plan_at(*z), bottom, "the plan at z = {z}");
+        }
+        // Fewer cells than the octree, which halves the layers too.
+        let (octree, _, _) = example(Split::Octree);
+        assert!(mesh.tetrahedra.len() < octree.tetrahedra.len());
+    }
+
+    #[test]
     fn the_cells_shrink_to_the_feature_size_and_grow_with_distance() {
-        let (mesh, features, grading) = example();
-        let mut finest_near = vec![f64::INFINITY; features.len()];
+        for split in SPLITS {
+            cells_shrink_to_the_feature_size_and_grow_with_distance(split);
+        }
+    }
+
+    fn cells_shrink_to_the_feature_size_and_grow_with_distance(split: Split) {
+        let (mesh, features, grading) = example(split);
         for t in &mesh.tetrahedra {
             let p = t.map(|n| mesh.nodes[n]);
             let lo = [0, 1, 2].map(|c| p.iter().map(|q| q[c]).fold(f64::INFINITY, f64::min));
@@ -485,24 +612,28 @@ mod tests {
                 hi,
                 index: [0; 3],
             };
-            let size = tet.side();
+            let size = tet.side(split);
             assert!(size <= mesh.largest);
-            for (f, finest) in features.iter().zip(&mut finest_near) {
+            for f in &features {
                 // A tetrahedron lies in its cell, no farther from a
                 // feature and no larger than the cell, which obeys the
                 // size wanted.
-                let d = tet.distance(f);
+                let d = tet.distance(f, split);
                 assert!(
                     size <= f.size.max(grading * d) * (1.0 + 1e-9),
                     "{lo:?} {hi:?}"
                 );
-                if d == 0.0 {
-                    *finest = finest.min(size);
-                }
             }
         }
-        // Halving stops within a factor of two of the size wanted.
-        for (f, finest) in features.iter().zip(finest_near) {
+        // Halving stops within a factor of two of the size wanted (before
+        // the balance, which may split further).
+        let leaves = refine(grid_cells(LINES), &features, grading, split);
+        for f in &features {
+            let finest = leaves
+                .iter()
+                .filter(|c| c.distance(f, split) == 0.0)
+                .map(|c| c.side(split))
+                .fold(f64::INFINITY, f64::min);
             assert!(
                 finest <= f.size && finest > 0.5 * f.size,
                 "{finest} for {f:?}"
@@ -512,16 +643,21 @@ mod tests {
 
     /// The refinement without dropping features: every cell split until no
     /// side exceeds the size every feature wants of it.
-    fn refine_without_pruning(cells: Vec<Cell>, features: &[Feature], grading: f64) -> Vec<Cell> {
+    fn refine_without_pruning(
+        cells: Vec<Cell>,
+        features: &[Feature],
+        grading: f64,
+        split: Split,
+    ) -> Vec<Cell> {
         let mut pending = cells;
         let mut leaves = Vec::new();
         while let Some(cell) = pending.pop() {
             let wanted = features
                 .iter()
-                .map(|f| f.size.max(grading * cell.distance(f)))
+                .map(|f| f.size.max(grading * cell.distance(f, split)))
                 .fold(f64::INFINITY, f64::min);
-            if cell.side() > wanted * (1.0 + 1e-9) {
-                cell.split(&mut pending);
+            if cell.side(split) > wanted * (1.0 + 1e-9) {
+                cell.split(split, &mut pending);
             } else {
                 leaves.push(cell);
             }
@@ -541,7 +677,9 @@ mod tests {
                 1..40,
             ),
             grading in 0.25..4.0f64,
+            in_plan in proptest::bool::ANY,
         ) {
+            let split = if in_plan { Split::Plan } else { Split::Octree };
             let features: Vec<Feature> = boxes
                 .iter()
                 .map(|&(lo, extent, level)| Feature {
@@ -550,9 +688,9 @@ mod tests {
                     size: 0.5f64.powi(level as i32),
                 })
                 .collect();
-            let cells = grid_cells([&[0.0, 1.0, 1.25, 2.0], &[0.0, 0.5, 1.0], &[0.0, 1.0]]);
-            let pruned = refine(cells.clone(), &features, grading);
-            let plain = refine_without_pruning(cells, &features, grading);
+            let cells = grid_cells(LINES);
+            let pruned = refine(cells.clone(), &features, grading, split);
+            let plain = refine_without_pruning(cells, &features, grading, split);
             proptest::prop_assert_eq!(pruned.len(), plain.len());
             for (a, b) in pruned.iter().zip(&plain) {
                 proptest::prop_assert!(a.lo == b.lo && a.hi == b.hi && a.index == b.index);

@@ -76,25 +76,40 @@ pub(crate) const PAPER_FINE_MARKER_GRADING: SlabGrading = SlabGrading {
         back_face: 3,
         probe_edges: 0,
         far_field: 0,
+        plan_only: false,
         grading: 0.7,
     }),
 };
 
-/// The slab each probe of the fine paper default is pressed on alone:
-/// eight levels towards the probe's edges (and the front face), three
-/// towards the top face, four towards the faces and sides. Against a slab
-/// graded once more towards each, the four probes' markers are 0.45 to
-/// 0.61 um away, where the paper default's slab leaves 39 to 77 um
-/// (`docs/truth-world.md`, The 3-D slab, session 37); but both are at
-/// in-plane refinement 1, and a plan of a third of its in-plane size
-/// moves the first probe's markers by 7.5 um (session 39).
+/// The slab each probe of the fine paper default is pressed on alone: the
+/// grid of refinement 2 (cells 1.875 mm) halved in the plan alone
+/// (`LocalRefinement::plan_only`), eight levels at the probe's edges
+/// (7.3 um), three at the back face's edges, grading 0.35; node planes
+/// two levels towards the top face. A probe's edges are singular
+/// uniformly through the thickness, so the plan is refined and the
+/// layers are not. On the first probe, each of six slabs refined one way
+/// more (edges, back face, far field, grading, top face, layers) moves
+/// the markers by at most 0.71 um, 0.089 of the noise. Until session 42
+/// the probes were pressed on a tensor slab at in-plane refinement 1
+/// (four levels towards the faces, three towards the top face, eight
+/// towards the edges), whose first probe's markers are 8.9 um from this
+/// slab's (`docs/truth-world.md`, The 3-D slab, session 42).
 pub(crate) const PAPER_FINE_PROBE_GRADING: SlabGrading = SlabGrading {
-    faces: 4,
+    faces: 0,
     needle_lines: 0,
     mid_plane: 0,
-    top_face: 3,
-    probe_edges: 8,
-    local: None,
+    top_face: 2,
+    probe_edges: 0,
+    local: Some(LocalRefinement {
+        refinement: Some(2),
+        needle_paths: 0,
+        needle_ends: 0,
+        back_face: 3,
+        probe_edges: 8,
+        far_field: 0,
+        plan_only: true,
+        grading: 0.35,
+    }),
 };
 
 /// The radius of the paper's needle, a 17 gauge Tuohy epidural needle
@@ -237,10 +252,9 @@ impl Scenario {
     /// as [`PAPER_FINE_PROBE_GRADING`] (`resolution.probe_grading`,
     /// `probe_mesh`). On the campaign's last insertion (the worst of the
     /// paper default's) six slabs each refined one way more move its
-    /// markers by at most 0.69 um, 0.086 of the marker noise; its probes
-    /// are within 0.61 um of slabs graded once more, but their in-plane
-    /// size, refined, moves them by 7.5 um (`docs/truth-world.md`, The
-    /// 3-D slab).
+    /// markers by at most 0.69 um, 0.086 of the marker noise; on its first
+    /// probe, six slabs each refined one way more move them by at most
+    /// 0.71 um, 0.089 of the noise (`docs/truth-world.md`, The 3-D slab).
     pub fn paper_default_fine() -> Self {
         let paper = Self::paper_default();
         Scenario {

@@ -17,6 +17,13 @@
 //! probe alone, no needle lines, factorised with the probe's face held
 //! (`probe::Factorisation::Own`). Markers, force, moment and peak strain
 //! are read there; every other trial stays on the scenario's slab.
+//!
+//! Since the edges are singular uniformly through the thickness, the fine
+//! paper default refines that slab in the plan alone
+//! (`LocalRefinement::plan_only`: a quadtree graded towards the edges,
+//! extruded through node planes graded towards the top face), where the
+//! octree's cubes at the edges would cost some four times the nodes
+//! (session 42).
 
 use crate::scenario::{ProbeTrial, Scenario};
 

@@ -149,6 +149,10 @@ fn is_zero(levels: &usize) -> bool {
     *levels == 0
 }
 
+fn is_false(flag: &bool) -> bool {
+    !flag
+}
+
 impl SlabGrading {
     /// The grading of a scenario that states none: two levels towards the
     /// faces and sides, uniform layers (the paper default states a finer
@@ -175,7 +179,8 @@ impl SlabGrading {
 /// In `resolution.marker_grading` the needle's features are where the
 /// placement found its loads in the material, and each insertion is
 /// settled on a slab of its own (`marker_mesh`); elsewhere they are on
-/// the needle's line.
+/// the needle's line. With `plan_only` the cells are halved in the plan
+/// alone, a quadtree extruded through the node planes.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LocalRefinement {
@@ -200,6 +205,14 @@ pub struct LocalRefinement {
     /// the grid's cell halved this many times (0: the grid's cell).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub far_field: usize,
+    /// Cells halved in the plan alone, along x and y, with distances
+    /// measured in the plan: one quadtree for every layer, extruded
+    /// through the grid's node planes. For features singular uniformly
+    /// through the thickness (a probe's edges), at a fraction of the
+    /// octree's cells; not for a needle, whose line load is singular in
+    /// its cross-section.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub plan_only: bool,
     /// The grading $g$: the largest cell over its distance to a feature;
     /// smaller is finer. 0.25 to 4.
     pub grading: f64,

@@ -37,7 +37,7 @@ use needle_fem::mesh::{Mesh, RectangleMesh, SlabMesh};
 
 use crate::error::SynthError;
 use crate::grid::grade;
-use crate::local_mesh::{Feature, mesh_locally, mirrored};
+use crate::local_mesh::{Feature, Split, mesh_locally, mirrored};
 use crate::scenario::{LocalRefinement, Scenario, SlabGrading};
 
 /// Grades the in-plane grid lines `xs`, `ys` (elements at most `target`)
@@ -288,7 +288,12 @@ pub(crate) fn local_slab(
     local: &LocalRefinement,
     span: Span,
 ) -> Result<(Mesh<3>, f64), SynthError> {
-    let upper = mesh_locally(lines, features, local.grading);
+    let split = if local.plan_only {
+        Split::Plan
+    } else {
+        Split::Octree
+    };
+    let upper = mesh_locally(lines, features, local.grading, split);
     let largest = upper.largest;
     let mesh = match span {
         Span::UpperHalf => upper,

@@ -62,6 +62,7 @@ fn local_slab() -> Scenario {
             back_face: 1,
             probe_edges: 1,
             far_field: 0,
+            plan_only: false,
             grading: 1.0,
         }),
     });
@@ -97,10 +98,20 @@ fn a_locally_refined_slab_s_largest_cell_follows_its_refinement_and_far_field() 
     }
 }
 
-/// The small scenario on the plane, the tensor slab and the local slab.
+/// The local slab refined in the plan alone (`plan_only`): a quadtree
+/// extruded through the node planes.
+fn plan_slab() -> Scenario {
+    let mut s = local_slab();
+    let grading = s.resolution.slab_grading.as_mut().unwrap();
+    grading.local.as_mut().unwrap().plan_only = true;
+    s
+}
+
+/// The small scenario on the plane, the tensor slab and the local slabs.
 fn every_body() -> Vec<Scenario> {
     let mut all = plane_and_slab().to_vec();
     all.push(local_slab());
+    all.push(plan_slab());
     all
 }
 

@@ -134,6 +134,7 @@ fn a_slab_campaign_settles_its_needles_on_its_marker_mesh() {
             back_face: 1,
             probe_edges: 0,
             far_field: 0,
+            plan_only: false,
             grading: 1.0,
         }),
     });

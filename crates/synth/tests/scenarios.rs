@@ -200,6 +200,7 @@ fn out_of_range_value_names_the_dotted_field() {
         back_face: 2,
         probe_edges: 2,
         far_field: 0,
+        plan_only: false,
         grading: 1.0,
     };
     let bad_local = [
