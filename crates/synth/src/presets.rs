@@ -84,12 +84,12 @@ pub(crate) const PAPER_FINE_MARKER_GRADING: SlabGrading = SlabGrading {
 /// The slab each probe of the fine paper default is pressed on alone: the
 /// grid of refinement 2 (cells 1.875 mm) halved in the plan alone
 /// (`LocalRefinement::plan_only`), eight levels at the probe's edges
-/// (7.3 um), three at the back face's edges, grading 0.35; node planes
+/// (7.3 um), three at the back face's edges, grading 0.3; node planes
 /// two levels towards the top face. A probe's edges are singular
 /// uniformly through the thickness, so the plan is refined and the
 /// layers are not. On the first probe, each of six slabs refined one way
 /// more (edges, back face, far field, grading, top face, layers) moves
-/// the markers by at most 0.71 um, 0.089 of the noise. Until session 42
+/// the markers by at most 0.47 um, 0.058 of the noise. Until session 42
 /// the probes were pressed on a tensor slab at in-plane refinement 1
 /// (four levels towards the faces, three towards the top face, eight
 /// towards the edges), whose first probe's markers are 8.9 um from this
@@ -108,7 +108,7 @@ pub(crate) const PAPER_FINE_PROBE_GRADING: SlabGrading = SlabGrading {
         probe_edges: 8,
         far_field: 0,
         plan_only: true,
-        grading: 0.35,
+        grading: 0.3,
     }),
 };
 
@@ -254,7 +254,7 @@ impl Scenario {
     /// paper default's) six slabs each refined one way more move its
     /// markers by at most 0.69 um, 0.086 of the marker noise; on its first
     /// probe, six slabs each refined one way more move them by at most
-    /// 0.71 um, 0.089 of the noise (`docs/truth-world.md`, The 3-D slab).
+    /// 0.47 um, 0.058 of the noise (`docs/truth-world.md`, The 3-D slab).
     pub fn paper_default_fine() -> Self {
         let paper = Self::paper_default();
         Scenario {

@@ -963,7 +963,7 @@ fn the_in_plane_error_of_the_tensor_probe_slab_is_below_a_tenth_of_the_marker_no
 /// grading, the node planes towards the top face and the layers. Asserts
 /// each within a tenth of the marker noise at every marker.
 #[test]
-#[ignore = "about seven minutes and 18 GB: one probe on seven slabs refined in the plan"]
+#[ignore = "about ten minutes and 20 GB: one probe on seven slabs refined in the plan"]
 fn the_fine_paper_default_s_probe_slab_is_within_a_tenth_of_the_marker_noise_of_each_finer_one() {
     let fine = Scenario::paper_default_fine();
     let sigma = fine.sensors.marker_sigma;
@@ -1039,6 +1039,70 @@ fn the_fine_paper_default_s_probe_slab_is_within_a_tenth_of_the_marker_noise_of_
             f * 1e3
         );
         worst = worst.max(gap);
+    }
+    assert!(
+        worst < 0.1 * sigma,
+        "a finer probe slab moves the markers by {worst} m, sigma {sigma} m"
+    );
+}
+
+/// Each of the fine paper default's four probes, pressed on its own slab
+/// as the preset does, against the two finer slabs that moved the first
+/// probe most in the test above: the far field one level finer and
+/// grading 0.25. Asserts every probe within a tenth of the marker noise
+/// of both.
+#[test]
+#[ignore = "about eighteen minutes and 20 GB: four probes on three slabs each"]
+fn every_probe_of_the_fine_paper_default_is_within_a_tenth_of_the_marker_noise_of_a_finer_far_field_and_grading()
+ {
+    let fine = Scenario::paper_default_fine();
+    let sigma = fine.sensors.marker_sigma;
+    let columns = fine.phantom.markers.0;
+    let own = fine
+        .resolution
+        .probe_grading
+        .expect("the fine one has them");
+    let base = own.local.expect("refined locally");
+    let finer = [
+        (
+            "far field: one level more",
+            LocalRefinement {
+                far_field: base.far_field + 1,
+                ..base
+            },
+        ),
+        (
+            "grading 0.25",
+            LocalRefinement {
+                grading: 0.25,
+                ..base
+            },
+        ),
+    ];
+    println!(
+        "| probe | refined | largest marker difference (um) | worst marker (column, row) | force (mN) |"
+    );
+    println!("|---|---|---|---|---|");
+    let mut worst: f64 = 0.0;
+    for (k, probe) in fine.probes.iter().enumerate() {
+        let (reference, force) = probe_alone(&fine, k, Some(own));
+        for (name, local) in finer {
+            let grading = SlabGrading {
+                local: Some(local),
+                ..own
+            };
+            let (markers, f) = probe_alone(&fine, k, Some(grading));
+            let (gap, _, column, row) = compare(&reference, &markers, columns);
+            println!(
+                "| x = {:.0} mm | {name} | {:.2} ({:.3} sigma) | {column}, {row} | {:+.3} of {:.1} |",
+                probe.x * 1e3,
+                gap * 1e6,
+                gap / sigma,
+                (force - f) * 1e3,
+                f * 1e3
+            );
+            worst = worst.max(gap);
+        }
     }
     assert!(
         worst < 0.1 * sigma,
