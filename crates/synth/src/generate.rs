@@ -20,7 +20,7 @@ use crate::needle::{NeedleRun, insert};
 use crate::probe::{Factorisation, ProbeRun, press};
 use crate::probe_mesh::probe_scenario;
 use crate::record::{Recorded, Recorder, Source};
-use crate::scenario::Scenario;
+use crate::scenario::{ProbeTrial, Scenario};
 use crate::sensor::{Instruments, stated_force_sigma};
 use crate::strain::peak_strain;
 use crate::truth::{Discretisation, GroundTruth};
@@ -433,26 +433,35 @@ fn run_probes(
     world: &World,
     progress: &(impl Fn(Stage) + Sync),
 ) -> Result<Vec<ProbeRun>, SynthError> {
-    let total = world.scenario.probes.len();
+    let scenario = world.scenario;
+    let total = scenario.probes.len();
     let done = std::sync::atomic::AtomicUsize::new(0);
-    world
-        .scenario
+    let press_one = |probe: &ProbeTrial| {
+        let run = match probe_scenario(scenario, probe) {
+            Some(own) => World::new(&own).and_then(|alone| {
+                let mut run = press(&alone, probe, Factorisation::Own)?;
+                run.mesh_nodes = Some(alone.body.nodes.len());
+                Ok(run)
+            }),
+            None => press(world, probe, Factorisation::Shared),
+        };
+        let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+        progress(Stage::Probes { done: d, total });
+        run
+    };
+    // Slabs of their own are pressed one after the other, as the needles'
+    // are: each factor is the largest thing in memory (some 10 GB for the
+    // fine paper default's probes), and two beside the campaign's slab
+    // took more than this machine's 23 GB.
+    let own_slabs = scenario
         .probes
-        .par_iter()
-        .map(|probe| {
-            let run = match probe_scenario(world.scenario, probe) {
-                Some(own) => World::new(&own).and_then(|alone| {
-                    let mut run = press(&alone, probe, Factorisation::Own)?;
-                    run.mesh_nodes = Some(alone.body.nodes.len());
-                    Ok(run)
-                }),
-                None => press(world, probe, Factorisation::Shared),
-            };
-            let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-            progress(Stage::Probes { done: d, total });
-            run
-        })
-        .collect()
+        .iter()
+        .any(|probe| probe_scenario(scenario, probe).is_some());
+    if own_slabs {
+        scenario.probes.iter().map(press_one).collect()
+    } else {
+        scenario.probes.par_iter().map(press_one).collect()
+    }
 }
 
 /// The needle trials in the order they are solved and listed: by day.

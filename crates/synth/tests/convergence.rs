@@ -957,6 +957,26 @@ fn the_in_plane_error_of_the_tensor_probe_slab_is_below_a_tenth_of_the_marker_no
     );
 }
 
+/// The largest marker difference of a probe's final `markers` and force
+/// from the `reference`'s, and the table cells saying it: the gap, its
+/// worst marker and the force difference.
+fn probe_row(
+    (reference, force): (&[[f64; 2]], f64),
+    (markers, f): (&[[f64; 2]], f64),
+    columns: usize,
+    sigma: f64,
+) -> (f64, String) {
+    let (gap, _, column, row) = compare(reference, markers, columns);
+    let cells = format!(
+        "{:.2} ({:.3} sigma) | {column}, {row} | {:+.3} of {:.1}",
+        gap * 1e6,
+        gap / sigma,
+        (force - f) * 1e3,
+        f * 1e3
+    );
+    (gap, cells)
+}
+
 /// The first probe (x = 15 mm, nearest a side) of the fine paper default,
 /// pressed on its own slab as the preset does and on six slabs each
 /// refined one way more: the edges, the back face, the far field, the
@@ -1030,14 +1050,8 @@ fn the_fine_paper_default_s_probe_slab_is_within_a_tenth_of_the_marker_noise_of_
     let mut worst: f64 = 0.0;
     for (name, scenario, grading) in finer {
         let (markers, f) = probe_alone(scenario, 0, Some(grading));
-        let (gap, _, column, row) = compare(&reference, &markers, columns);
-        println!(
-            "| {name} | {:.2} ({:.3} sigma) | {column}, {row} | {:+.3} of {:.1} |",
-            gap * 1e6,
-            gap / sigma,
-            (force - f) * 1e3,
-            f * 1e3
-        );
+        let (gap, row) = probe_row((&reference, force), (&markers, f), columns, sigma);
+        println!("| {name} | {row} |");
         worst = worst.max(gap);
     }
     assert!(
@@ -1092,15 +1106,8 @@ fn every_probe_of_the_fine_paper_default_is_within_a_tenth_of_the_marker_noise_o
                 ..own
             };
             let (markers, f) = probe_alone(&fine, k, Some(grading));
-            let (gap, _, column, row) = compare(&reference, &markers, columns);
-            println!(
-                "| x = {:.0} mm | {name} | {:.2} ({:.3} sigma) | {column}, {row} | {:+.3} of {:.1} |",
-                probe.x * 1e3,
-                gap * 1e6,
-                gap / sigma,
-                (force - f) * 1e3,
-                f * 1e3
-            );
+            let (gap, row) = probe_row((&reference, force), (&markers, f), columns, sigma);
+            println!("| x = {:.0} mm | {name} | {row} |", probe.x * 1e3);
             worst = worst.max(gap);
         }
     }
