@@ -138,9 +138,10 @@ pub struct SlabGrading {
     /// the front face it presses on, by as many levels; absent, 0.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub probe_edges: usize,
-    /// The mesh refined locally, an octree on the cells of the graded
-    /// tensor grid (`local_mesh`); absent, the tensor grid alone, cut into
-    /// six tetrahedra per cell.
+    /// The mesh refined locally, an octree (or a quadtree extruded
+    /// through the node planes) on the cells of the graded tensor grid
+    /// (`local_mesh`); absent, the tensor grid alone, cut into six
+    /// tetrahedra per cell.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub local: Option<LocalRefinement>,
 }
