@@ -32,8 +32,9 @@
 //! thickness graded once) and asserts the extrapolated in-plane error of
 //! the fine paper default's plan within a tenth of the noise. It fails:
 //! refinement 4 is 5.2 µm away, the observed order 1.2. One more does
-//! the same for the first probe on its own slab (refinements 1, 2 and
-//! 3) and fails: refinement 3 is 7.5 µm away.
+//! the same for the first probe on the tensor probe slab the fine paper
+//! default used up to session 41 (refinements 1, 2 and 3) and fails:
+//! refinement 3 is 7.5 µm away.
 //! Since session 41 the fine paper default settles each insertion on a
 //! slab of its own refined locally along its material path
 //! (`SlabGrading::local`); one test settles the last insertion so and on
@@ -42,11 +43,16 @@
 //! the noise of each; another does it for every insertion of the
 //! campaign against the far field one level finer.
 //! Another presses each of the paper default's four probes alone, on
-//! the paper default's slab and on the fine paper default's own probe
-//! slabs (`resolution.probe_grading`), against slabs graded once more
-//! towards the faces, the top face and the probe's edges, and asserts the
-//! fine paper default's within a tenth of the noise (it passes: 0.61 µm
-//! at worst; the paper default's slab is 39 to 77 µm away).
+//! the paper default's slab and on that tensor probe slab, against slabs
+//! graded once more towards the faces, the top face and the probe's
+//! edges, and asserts the tensor probe slab within a tenth of the noise
+//! (it passes: 0.61 µm at worst; the paper default's slab is 39 to 77
+//! µm away). Since session 42 the fine paper default presses each probe
+//! on a slab refined in the plan (`LocalRefinement::plan_only`); one
+//! test presses the first probe so and on six slabs each refined one
+//! way more (edges, back face, far field, grading, top face, layers),
+//! another every probe against the far field one level finer and a
+//! finer grading, each asserting the markers within a tenth of the noise.
 //! A third test measures the interpolation between needle states. A
 //! fourth compares the plane-strain truth of `fixtures/scenarios/null.ron`
 //! (one probe, one insertion; its grid graded towards the probe edges,
@@ -808,7 +814,8 @@ const TENSOR_PROBE_SLAB: SlabGrading = SlabGrading {
 /// deep), on the paper default's slab and on probe slabs of their own
 /// graded as [`TENSOR_PROBE_SLAB`], against slabs graded once more
 /// towards the faces, the top face and the probe's edges. Asserts the
-/// tensor probe slabs within a tenth of the marker noise at every marker; prints the paper default's too, over every marker and
+/// tensor probe slabs within a tenth of the marker noise at every
+/// marker; prints the paper default's too, over every marker and
 /// beyond one phantom thickness of the contact (the markers the
 /// diagnosis fits), there also at the same force (the diagnosis loads
 /// its probe by the measured force), and the force.
@@ -883,8 +890,8 @@ fn the_tensor_probe_slab_is_within_a_tenth_of_the_marker_noise_of_a_finer_one() 
 /// The tensor probe slab's reference, like the needle trials', is at
 /// in-plane refinement 1. This test refines the in-plane size alone for
 /// the first probe (x = 15 mm; the probes' own slabs differ only in where
-/// they lie): its [`TENSOR_PROBE_SLAB`] at refinements 1, 2 and 3, with the same node
-/// planes through the thickness, graded one level less towards the
+/// they lie): its [`TENSOR_PROBE_SLAB`] at refinements 1, 2 and 3, with
+/// the same node planes through the thickness, graded one level less towards the
 /// faces, sides and probe edges at refinement 2 so that the finest
 /// elements there are the fine paper default's, and at refinement 3 as
 /// many levels as make them no larger (0.156 and 0.0098 mm against 0.234
