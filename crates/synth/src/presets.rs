@@ -93,7 +93,7 @@ pub(crate) const PAPER_FINE_MARKER_GRADING: SlabGrading = SlabGrading {
 /// the probes were pressed on a tensor slab at in-plane refinement 1
 /// (four levels towards the faces, three towards the top face, eight
 /// towards the edges), whose first probe's markers are 8.9 um from this
-/// slab's (`docs/truth-world.md`, The 3-D slab, session 42).
+/// slab's at grading 0.35 (`docs/truth-world.md`, The 3-D slab, session 42).
 pub(crate) const PAPER_FINE_PROBE_GRADING: SlabGrading = SlabGrading {
     faces: 0,
     needle_lines: 0,
