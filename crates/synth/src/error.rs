@@ -45,7 +45,7 @@ pub enum SynthError {
     Factorisation {
         /// Which system.
         what: String,
-        /// faer's message.
+        /// faer's or METIS's message.
         reason: String,
     },
     /// The Newton iteration of the nonlinear material did not converge.

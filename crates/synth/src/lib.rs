@@ -47,6 +47,9 @@
 //!   With `resolution.probe_grading` each probe is pressed on a slab of
 //!   its own, graded towards its edges and factorised with its face held
 //!   (`probe_mesh`).
+//!   Every factor is ordered by METIS's nested dissection on the graph
+//!   of the mesh's nodes (`ordering`, the one foreign library the truth
+//!   links), which fills less than faer's default minimum degree.
 //! - Needle shaft loads act at the material points whose deformed images
 //!   lie on the needle ([`needle`]); the tool force is their integral.
 //! - Measurements: force sensor noise and quantisation, Gaussian marker
@@ -76,6 +79,7 @@ mod grid;
 mod line_response;
 mod local_mesh;
 mod marker_mesh;
+mod ordering;
 mod presets;
 mod probe;
 mod probe_mesh;

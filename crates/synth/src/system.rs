@@ -9,8 +9,9 @@
 use std::sync::Arc;
 
 use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::perm::PermRef;
 use faer::sparse::linalg::cholesky::{
-    LdltRef, LltRef, SymbolicCholesky, factorize_symbolic_cholesky,
+    LdltRef, LltRef, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky,
 };
 use faer::sparse::{
     Argsort, Pair, SparseColMat, SparseColMatRef, SymbolicSparseColMat, SymbolicSparseColMatRef,
@@ -19,6 +20,7 @@ use faer::sparse::{
 use faer::{Conj, Par, Side, get_global_parallelism};
 
 use crate::error::SynthError;
+use crate::ordering::{nested_dissection, vertices_of};
 
 /// The total stiffness (elastic plus springs) in full storage.
 pub(crate) struct Stiffness {
@@ -131,12 +133,13 @@ impl Layout {
 /// The analysis of $K_{ff}$ for one sparsity pattern of $K$ and one set
 /// of held components: which dofs are free, the pattern of the lower free
 /// block, where each of its entries sits among $K$'s stored values, and
-/// the fill-reducing ordering and symbolic Cholesky factor.
+/// the fill-reducing ordering (nested dissection, [`crate::ordering`])
+/// and symbolic Cholesky factor.
 ///
 /// A Newton solve refactorises a tangent whose pattern never changes, so
 /// it analyses once and refactorises many times
-/// ([`Factorised::with_analysis`]); the analysis (the minimum-degree
-/// ordering, the elimination tree) is otherwise redone with every factor.
+/// ([`Factorised::with_analysis`]); the analysis (the ordering, the
+/// elimination tree) is otherwise redone with every factor.
 pub(crate) struct Analysis {
     /// Reduced index of each dof, `usize::MAX` when held.
     reduced: Vec<usize>,
@@ -188,16 +191,19 @@ impl Analysis {
             col_ptr.push(row_idx.len());
         }
         let lower = SymbolicSparseColMat::new_checked(m, m, col_ptr, None, row_idx);
+        let failed = |reason: String| SynthError::Factorisation {
+            what: what.to_string(),
+            reason,
+        };
+        let ordering = nested_dissection(lower.as_ref(), &vertices_of(k, &free)).map_err(failed)?;
+        let permutation = PermRef::new_checked(&ordering.forward, &ordering.inverse, m);
         let symbolic = factorize_symbolic_cholesky(
             lower.as_ref(),
             Side::Lower,
-            Default::default(),
+            SymmetricOrdering::Custom(permutation),
             Default::default(),
         )
-        .map_err(|e| SynthError::Factorisation {
-            what: what.to_string(),
-            reason: format!("{e:?}"),
-        })?;
+        .map_err(|e| failed(format!("{e:?}")))?;
         Ok(Self {
             reduced,
             free,
