@@ -49,6 +49,7 @@ pub(crate) fn nested_dissection(
     for (r, &v) in vertex.iter().enumerate().rev() {
         first[v] = r;
     }
+    // Every order of two vertices fills alike, and METIS wants one at least.
     if vertices < 3 {
         let identity: Vec<usize> = (0..m).collect();
         return Ok(Ordering {
@@ -58,6 +59,7 @@ pub(crate) fn nested_dissection(
     }
     let index =
         |n: usize| i32::try_from(n).map_err(|_| format!("{n} exceeds METIS's 32-bit indices"));
+    let mut count = index(vertices)?;
     // A vertex's first unknown is the lowest of its unknowns, so the
     // lower column of that unknown reaches every later neighbour; each
     // edge is found once, from its earlier end. Rows are sorted, so
@@ -98,7 +100,6 @@ pub(crate) fn nested_dissection(
     for &v in vertex {
         weight[v] += 1;
     }
-    let mut count = index(vertices)?;
     let mut perm = vec![0i32; vertices];
     let mut iperm = vec![0i32; vertices];
     let mut options = [0i32; metis_sys::METIS_NOPTIONS as usize];
