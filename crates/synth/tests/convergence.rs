@@ -984,6 +984,17 @@ fn probe_row(
     (gap, cells)
 }
 
+/// The fine paper default, its probe slab and that slab's local refinement.
+fn fine_probe_slab() -> (Scenario, SlabGrading, LocalRefinement) {
+    let fine = Scenario::paper_default_fine();
+    let own = fine
+        .resolution
+        .probe_grading
+        .expect("the fine one has them");
+    let base = own.local.expect("refined locally");
+    (fine, own, base)
+}
+
 /// Asserts the first probe of `fine`, pressed on its own slab as the
 /// preset does, within a tenth of the marker noise of each of the `finer`
 /// (name, scenario, probe slab) at every marker, and prints the table.
@@ -1020,12 +1031,7 @@ fn first_probe_within_a_tenth_of_the_noise_of(
 #[test]
 #[ignore = "about ten minutes and 20 GB: one probe on seven slabs refined in the plan"]
 fn the_fine_paper_default_s_probe_slab_is_within_a_tenth_of_the_marker_noise_of_each_finer_one() {
-    let fine = Scenario::paper_default_fine();
-    let own = fine
-        .resolution
-        .probe_grading
-        .expect("the fine one has them");
-    let base = own.local.expect("refined locally");
+    let (fine, own, base) = fine_probe_slab();
     let with = |local: LocalRefinement| SlabGrading {
         local: Some(local),
         ..own
@@ -1089,12 +1095,7 @@ fn the_fine_paper_default_s_probe_slab_is_within_a_tenth_of_the_marker_noise_of_
 #[ignore = "about six minutes and 21 GB: one probe on three slabs refined in the plan"]
 fn the_fine_paper_default_s_probe_slab_is_within_a_tenth_of_the_marker_noise_of_slabs_refined_several_ways_at_once()
  {
-    let fine = Scenario::paper_default_fine();
-    let own = fine
-        .resolution
-        .probe_grading
-        .expect("the fine one has them");
-    let base = own.local.expect("refined locally");
+    let (fine, own, base) = fine_probe_slab();
     let in_plan = SlabGrading {
         local: Some(LocalRefinement {
             probe_edges: base.probe_edges + 1,
@@ -1135,14 +1136,9 @@ fn the_fine_paper_default_s_probe_slab_is_within_a_tenth_of_the_marker_noise_of_
 #[ignore = "about eighteen minutes and 20 GB: four probes on three slabs each"]
 fn every_probe_of_the_fine_paper_default_is_within_a_tenth_of_the_marker_noise_of_a_finer_far_field_and_grading()
  {
-    let fine = Scenario::paper_default_fine();
+    let (fine, own, base) = fine_probe_slab();
     let sigma = fine.sensors.marker_sigma;
     let columns = fine.phantom.markers.0;
-    let own = fine
-        .resolution
-        .probe_grading
-        .expect("the fine one has them");
-    let base = own.local.expect("refined locally");
     let finer = [
         (
             "far field: one level more",
