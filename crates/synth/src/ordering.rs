@@ -23,7 +23,16 @@
 //! node) form one vertex, weighted by their count, and stay consecutive
 //! in the ordering.
 
+use std::sync::{Mutex, PoisonError};
+
 use faer::sparse::SymbolicSparseColMatRef;
+
+/// METIS keeps its random generator in one process-wide state (GKlib's
+/// `mt`) and seeds it at the start of every call, so that a graph always
+/// gets the same ordering. Two calls at once would race on that state,
+/// and the orderings, hence the truth's round-off, would depend on the
+/// threads' timing: calls take turns.
+static METIS_TURN: Mutex<()> = Mutex::new(());
 
 /// A permutation of the unknowns: `forward[new] = old`, `inverse[old] = new`.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -103,6 +112,7 @@ pub(crate) fn nested_dissection(
     let mut perm = vec![0i32; vertices];
     let mut iperm = vec![0i32; vertices];
     let mut options = [0i32; metis_sys::METIS_NOPTIONS as usize];
+    let _turn = METIS_TURN.lock().unwrap_or_else(PoisonError::into_inner);
     // SAFETY: `options` has the METIS_NOPTIONS entries METIS reads and
     // writes; METIS_SetDefaultOptions touches nothing else.
     #[allow(unsafe_code)]
@@ -116,7 +126,7 @@ pub(crate) fn nested_dissection(
     // graph without self-loops, as METIS requires); `weight`, `perm` and
     // `iperm` have `count` entries and `options` METIS_NOPTIONS. METIS
     // reads the graph and writes only `perm` and `iperm`, and keeps no
-    // pointer after it returns.
+    // pointer after it returns. No other call runs meanwhile (`_turn`).
     #[allow(unsafe_code)]
     let status = unsafe {
         metis_sys::METIS_NodeND(
@@ -290,6 +300,25 @@ mod tests {
             dissected < minimum_degree,
             "{dissected} against {minimum_degree}"
         );
+    }
+
+    /// METIS's random generator is process-wide: orderings made on many
+    /// threads at once must equal the one made alone.
+    #[test]
+    fn orderings_made_at_once_on_many_threads_equal_the_one_made_alone() {
+        let (full, lower) = patterns(&cube(9), 3);
+        let free: Vec<usize> = (0..full.ncols()).collect();
+        let vertex = vertices_of(full.as_ref(), &free);
+        let alone = nested_dissection(lower.as_ref(), &vertex).unwrap();
+        let at_once: Vec<Ordering> = std::thread::scope(|scope| {
+            let threads: Vec<_> = (0..8)
+                .map(|_| scope.spawn(|| nested_dissection(lower.as_ref(), &vertex).unwrap()))
+                .collect();
+            threads.into_iter().map(|t| t.join().unwrap()).collect()
+        });
+        for ordering in at_once {
+            assert_eq!(ordering, alone);
+        }
     }
 
     proptest::proptest! {
