@@ -52,7 +52,9 @@
 //! test presses the first probe so and on six slabs each refined one
 //! way more (edges, back face, far field, grading, top face, layers),
 //! another every probe against the far field one level finer and a
-//! finer grading, each asserting the markers within a tenth of the noise.
+//! finer grading, and two more every probe against two slabs refined
+//! several ways at once, each asserting the markers within a tenth of the
+//! noise.
 //! A third test measures the interpolation between needle states. A
 //! fourth compares the plane-strain truth of `fixtures/scenarios/null.ron`
 //! (one probe, one insertion; its grid graded towards the probe edges,
