@@ -573,12 +573,7 @@ fn the_in_plane_error_of_the_tensor_marker_slab_is_below_a_tenth_of_the_marker_n
         };
         let (far_gap, _) = largest_over_states(&far_only(&a.markers), &far_only(&b.markers));
         let (far_scaled_gap, _) = largest_over_states(&far_only(&scaled), &far_only(&b.markers));
-        let force_gap = a
-            .force
-            .iter()
-            .zip(&b.force)
-            .map(|(fa, fb)| (fa - fb).abs() / fb.max(f64::MIN_POSITIVE))
-            .fold(0.0, f64::max);
+        let force_gap = largest_relative_difference(&a.force, &b.force);
         println!(
             "| {} | {} | {:.2} ({:.3} sigma) | state {state}, marker {marker} | {:.2} | {:.2} | {:.1e} |",
             levels[i].0,
@@ -672,12 +667,7 @@ fn last_insertion_within_a_tenth_of_the_noise_of(finer: &[(&str, LocalRefinement
     for &(name, local, layers) in finer {
         let trial = settled_locally(last, local, layers);
         let (gap, state, marker) = worst_marker(&reference.markers, &trial.markers);
-        let force = reference
-            .force
-            .iter()
-            .zip(&trial.force)
-            .map(|(a, b)| (a - b).abs() / b.max(f64::MIN_POSITIVE))
-            .fold(0.0, f64::max);
+        let force = largest_relative_difference(&reference.force, &trial.force);
         println!(
             "| {name} | {} | {force:.1e} |",
             located(gap, sigma, state, marker, columns)
@@ -1403,6 +1393,14 @@ fn plane(factor: usize) -> Scenario {
     s.resolution.refinement *= factor;
     s.resolution.depth_step = 0.005;
     s
+}
+
+/// The largest of $|a_i - b_i| / b_i$ over two force histories.
+fn largest_relative_difference(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(fa, fb)| (fa - fb).abs() / fb.max(f64::MIN_POSITIVE))
+        .fold(0.0, f64::max)
 }
 
 /// Largest and rms vector difference of the final marker displacements,
