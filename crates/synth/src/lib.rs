@@ -75,6 +75,7 @@ pub mod sensor;
 pub mod truth;
 
 mod body;
+mod contact;
 mod grid;
 mod line_response;
 mod local_mesh;

@@ -192,6 +192,7 @@ impl Scenario {
                     velocity: 0.001,
                     width: 0.004,
                     day: 1.0,
+                    edge_radius: None,
                 })
                 .collect(),
             needles: Needles {

@@ -24,6 +24,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
+use crate::contact::Punch;
 use crate::error::SynthError;
 use crate::scenario::ProbeTrial;
 use crate::strain::peak_strain;
@@ -141,11 +142,50 @@ pub(crate) fn press(
         run.peak_strain = peak_strain(body, &run.last_displacement);
         return Ok(run);
     }
-    let solver = world.neo_hookean(probe.day, &held)?;
     let states = (probe.indentation / world.scenario.resolution.indentation_step)
         .ceil()
         .max(1.0) as usize;
+    let during = |delta: f64| {
+        move |e: SynthError| {
+            e.during(|| {
+                format!(
+                    "pressed by the probe at x = {} m to {delta:.6} m of its {} m",
+                    probe.x, probe.indentation
+                )
+            })
+        }
+    };
     let mut u = vec![0.0; dofs];
+    if let Some(edge_radius) = probe.edge_radius {
+        // Every front-face node may touch the probe: the surface beside it
+        // is drawn in towards its sides.
+        let front = body.nodes_where(|x| x[1].abs() < tol);
+        let solver = world.neo_hookean(probe.day, &[], &front)?;
+        let mut contact = solver.contact(Punch {
+            centre: probe.x,
+            half_width: probe.width / 2.0,
+            edge_radius,
+            depth: 0.0,
+        });
+        let mut from = 0.0;
+        for k in 1..=states {
+            let delta = probe.indentation * k as f64 / states as f64;
+            contact.punch.depth = delta;
+            u = solver
+                .press(body, &u, from, &mut contact)
+                .map_err(during(delta))?;
+            from = delta;
+            let (force, moment) = contact.resultant(&body.nodes, body.dim, &u);
+            run.indentations.push(delta);
+            run.markers.push(world.marker_displacements(&u));
+            run.force.push(body.copies() * force);
+            run.moment.push(body.copies() * moment);
+            run.last_displacement = u.clone();
+        }
+        run.peak_strain = peak_strain(body, &run.last_displacement);
+        return Ok(run);
+    }
+    let solver = world.neo_hookean(probe.day, &held, &[])?;
     for k in 1..=states {
         let delta = probe.indentation * k as f64 / states as f64;
         let mut prescribed = vec![0.0; dofs];
@@ -154,14 +194,7 @@ pub(crate) fn press(
         }
         u = solver
             .solve(body, &vec![0.0; dofs], &u, &prescribed)
-            .map_err(|e| {
-                e.during(|| {
-                    format!(
-                        "pressed by the probe at x = {} m to {delta:.6} m of its {} m",
-                        probe.x, probe.indentation
-                    )
-                })
-            })?;
+            .map_err(during(delta))?;
         let reactions = solver.internal_forces(body, &u);
         record(delta, u.clone(), &reactions);
     }

@@ -281,6 +281,15 @@ pub struct ProbeTrial {
     pub width: f64,
     /// Day of the trial.
     pub day: f64,
+    /// Radius of the probe's rounded edges (m), above zero and at most half
+    /// its width. Absent, the edges are sharp and the nodes under the face
+    /// are held (a flat punch, `probe`); present, the probe touches the
+    /// phantom in frictionless contact, face, edges and sides (`contact`),
+    /// which the truth solves for the neo-Hookean material
+    /// (`material_nonlinearity`) only, in depth steps best no larger than
+    /// half the radius (`resolution.indentation_step`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub edge_radius: Option<f64>,
 }
 
 /// The needle insertions: every velocity once per day in `days`, each
@@ -540,6 +549,27 @@ impl Scenario {
                 },
             )?;
             c.within(probe.indentation, 0.0, 0.25 * p.depth, &f("indentation"))?;
+            if let Some(radius) = probe.edge_radius {
+                c.check(
+                    radius.is_finite() && radius > 0.0 && radius <= probe.width / 2.0,
+                    &f("edge_radius"),
+                    || {
+                        format!(
+                            "must lie in (0, half the width {}], got {radius}",
+                            probe.width / 2.0
+                        )
+                    },
+                )?;
+                c.check(
+                    self.effects.material_nonlinearity.is_some(),
+                    &f("edge_radius"),
+                    || {
+                        "a probe with rounded edges is solved in contact, which the truth \
+                         does for the neo-Hookean material (material_nonlinearity) only"
+                            .into()
+                    },
+                )?;
+            }
             c.positive(probe.velocity, &f("velocity"))?;
             c.non_negative(probe.day, &f("day"))?;
         }

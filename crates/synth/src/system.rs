@@ -68,6 +68,15 @@ impl Stiffness {
         }
         out
     }
+
+    /// The entry $K_{ii}$ (zero where the pattern has none).
+    pub fn diagonal(&self, i: usize) -> f64 {
+        self.matrix
+            .row_idx_of_col(i)
+            .zip(self.matrix.val_of_col(i))
+            .find(|&(row, _)| row == i)
+            .map_or(0.0, |(_, v)| *v)
+    }
 }
 
 /// The pattern of a matrix assembled again and again from entries listed

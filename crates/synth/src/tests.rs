@@ -395,9 +395,9 @@ fn neo_hookean_tangent_at_rest_is_the_linear_stiffness() {
             &[],
         )
         .unwrap();
-        let neo = NeoHookean::new(&world.body, &pairs, &[], world.fixed.clone()).unwrap();
+        let neo = NeoHookean::new(&world.body, &pairs, &[], world.fixed.clone(), &[]).unwrap();
         let tangent = neo
-            .tangent_at(&world.body, &vec![0.0; world.body.dof_count()])
+            .tangent_at(&world.body, &vec![0.0; world.body.dof_count()], None)
             .unwrap();
         // Compare the two matrices through their action on a few vectors.
         for seed in 0..3 {
@@ -430,7 +430,7 @@ fn neo_hookean_tangent_is_the_derivative_of_the_internal_forces_when_strained() 
         let world = World::new(&s).unwrap();
         let body = &world.body;
         let pairs = [(s.phantom.youngs_modulus, s.phantom.poisson_ratio)];
-        let neo = NeoHookean::new(body, &pairs, &[], world.fixed.clone()).unwrap();
+        let neo = NeoHookean::new(body, &pairs, &[], world.fixed.clone(), &[]).unwrap();
         let (w, d) = (s.phantom.width, s.phantom.depth);
         let mut u = vec![0.0; body.dof_count()];
         for (n, x) in body.nodes.iter().enumerate() {
@@ -438,7 +438,7 @@ fn neo_hookean_tangent_is_the_derivative_of_the_internal_forces_when_strained() 
             u[n * body.dim] = 0.2 * w * a * b * (1.0 - b);
             u[n * body.dim + 1] = -0.3 * d * b * b + 0.1 * d * a * b;
         }
-        let tangent = neo.tangent_at(body, &u).unwrap();
+        let tangent = neo.tangent_at(body, &u, None).unwrap();
         for seed in 0..3 {
             let v: Vec<f64> = (0..body.dof_count())
                 .map(|i| ((i * 7919 + seed * 104729) % 1000) as f64 / 1000.0 - 0.5)
@@ -1169,4 +1169,100 @@ fn a_slab_graded_towards_the_probe_edges_brings_the_probe_markers_near_the_conve
     let after = trial_marker_gap(&pressed_alone, &converged, TrialKind::Probe);
     // Measured: 237 um on the shared slab, 35 um on the probe's own.
     assert!(after < 0.3 * before, "{after} m, {before} m before");
+}
+
+/// A probe with rounded edges (`contact`) on a small neo-Hookean phantom.
+mod rounded_probe {
+    use super::*;
+    use crate::contact::Punch;
+    use crate::effect::MaterialNonlinearity;
+
+    /// One probe at the middle of the front face, 4 mm wide with 0.5 mm
+    /// edges, pressed 0.5 mm into a coarse neo-Hookean plane phantom.
+    fn scenario() -> Scenario {
+        let mut s = Scenario::quick();
+        s.phantom.markers = (6, 6);
+        s.resolution.refinement = 1;
+        s.resolution.indentation_step = 0.000125;
+        s.effects = Effects::none();
+        s.effects.material_nonlinearity = Some(MaterialNonlinearity);
+        let mut probe = s.probes[0];
+        probe.x = s.phantom.width / 2.0;
+        probe.width = 0.004;
+        probe.indentation = 0.0005;
+        probe.edge_radius = Some(0.0005);
+        s.probes = vec![probe];
+        s
+    }
+
+    #[test]
+    fn a_rounded_probe_is_balanced_by_the_supports_and_nothing_passes_into_it() {
+        let s = scenario();
+        let world = World::new(&s).unwrap();
+        let body = &world.body;
+        let probe = s.probes[0];
+        let run = press(&world, &probe, Factorisation::Shared).unwrap();
+        let u = &run.last_displacement;
+        let force = *run.force.last().unwrap() / body.copies();
+        assert!(force > 0.0, "{force}");
+        // The supports' reactions are the elastic forces at the held back
+        // face; the probe's forces are the contact's. Computed apart, they
+        // must balance, in force and, about the probe's centre, in moment
+        // (the neo-Hookean forces have none of their own at the current
+        // positions, the energy being blind to rotations).
+        let solver = world.neo_hookean(probe.day, &[], &[]).unwrap();
+        let reactions = solver.internal_forces(body, u);
+        let held: Vec<usize> = (0..body.nodes.len())
+            .filter(|&n| world.fixed[n * body.dim + 1])
+            .collect();
+        let along = |i: usize| -> f64 { held.iter().map(|&n| reactions[n * body.dim + i]).sum() };
+        assert!(
+            (along(1) + force).abs() < 1e-6 * force,
+            "probe {force} N against supports {} N",
+            along(1)
+        );
+        let moment: f64 = held
+            .iter()
+            .map(|&n| {
+                let arm = [
+                    body.nodes[n][0] - probe.x,
+                    body.nodes[n][1] - probe.indentation,
+                ];
+                arm[0] * reactions[n * body.dim + 1] - arm[1] * reactions[n * body.dim]
+            })
+            .sum();
+        let probe_moment = *run.moment.last().unwrap() / body.copies();
+        let scale = force * s.phantom.depth;
+        assert!(
+            (moment + probe_moment).abs() < 1e-6 * scale,
+            "probe {probe_moment} N m against supports {moment} N m"
+        );
+        // Every front-face node is outside the probe or inside it by no
+        // more than the penalty's error, and the rounded edges are touched.
+        let punch = Punch {
+            centre: probe.x,
+            half_width: probe.width / 2.0,
+            edge_radius: probe.edge_radius.unwrap(),
+            depth: probe.indentation,
+        };
+        let tol = 1e-9 * s.phantom.width;
+        let front = body.nodes_where(|x| x[1].abs() < tol);
+        let mut on_edges = 0;
+        for &n in &front {
+            let p = [
+                body.nodes[n][0] + u[n * body.dim],
+                body.nodes[n][1] + u[n * body.dim + 1],
+            ];
+            let at = punch.penetration_of(p);
+            assert!(
+                at.depth < 1e-9,
+                "node {n} at {p:?} is {} m inside",
+                at.depth
+            );
+            if at.depth > -1e-9 && at.curvature > 0.0 {
+                on_edges += 1;
+            }
+        }
+        assert!(on_edges >= 1, "no node on the rounded edges");
+    }
 }

@@ -159,7 +159,11 @@ impl<'s> World<'s> {
     /// The response of the phantom on `day` with the supports held.
     pub fn response(&self, day: f64) -> Result<Response, SynthError> {
         if self.scenario.effects.material_nonlinearity.is_some() {
-            return Ok(Response::NeoHookean(Box::new(self.neo_hookean(day, &[])?)));
+            return Ok(Response::NeoHookean(Box::new(self.neo_hookean(
+                day,
+                &[],
+                &[],
+            )?)));
         }
         let moduli = self.moduli(day);
         if !self.springs.is_empty() {
@@ -195,15 +199,21 @@ impl<'s> World<'s> {
     }
 
     /// The neo-Hookean phantom on `day`, with `extra_held` components held
-    /// besides the supports (a probe face).
-    pub fn neo_hookean(&self, day: f64, extra_held: &[usize]) -> Result<NeoHookean, SynthError> {
+    /// besides the supports (a flat probe's face), and `contact_nodes` that
+    /// a rounded probe may touch.
+    pub fn neo_hookean(
+        &self,
+        day: f64,
+        extra_held: &[usize],
+        contact_nodes: &[usize],
+    ) -> Result<NeoHookean, SynthError> {
         let nu = self.scenario.phantom.poisson_ratio;
         let pairs: Vec<(f64, f64)> = self.moduli(day).into_iter().map(|e| (e, nu)).collect();
         let mut held = self.fixed.clone();
         for &d in extra_held {
             held[d] = true;
         }
-        NeoHookean::new(&self.body, &pairs, &self.springs, held)
+        NeoHookean::new(&self.body, &pairs, &self.springs, held, contact_nodes)
     }
 
     /// The linear phantom on `day` with the components `pressed` held at

@@ -153,6 +153,28 @@ fn out_of_range_value_names_the_dotted_field() {
             "{e}"
         );
     }
+    // A probe's rounded edges: inside half its width, and only where the
+    // truth solves contact (the neo-Hookean material).
+    for (effect, radius) in [
+        (EffectId::MaterialNonlinearity, 0.0),
+        (EffectId::MaterialNonlinearity, -1e-4),
+        (EffectId::MaterialNonlinearity, f64::NAN),
+        (EffectId::MaterialNonlinearity, 0.0021),
+        (EffectId::LayeredStiffness, 0.0005),
+    ] {
+        let mut s = Scenario::effect_alone(effect);
+        s.probes[1].width = 0.004;
+        s.probes[1].edge_radius = Some(radius);
+        let e = s.validate("memory").unwrap_err();
+        assert!(
+            matches!(e, SynthError::InvalidField { ref field, .. } if field == "probes[1].edge_radius"),
+            "{effect:?} {radius}: {e}"
+        );
+    }
+    let mut s = Scenario::effect_alone(EffectId::MaterialNonlinearity);
+    s.probes[1].width = 0.004;
+    s.probes[1].edge_radius = Some(0.002);
+    s.validate("memory").unwrap();
     let mut s = Scenario::effect_alone(EffectId::LayeredStiffness);
     s.effects.layered_stiffness.as_mut().unwrap().moduli.pop();
     let e = s.validate("memory").unwrap_err();

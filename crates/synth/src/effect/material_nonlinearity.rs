@@ -34,6 +34,7 @@ use serde::{Deserialize, Serialize};
 
 use super::{EffectId, TruthEffect};
 use crate::body::Body;
+use crate::contact::{Contact, Curvature, PENALTY_FACTOR, Punch};
 use crate::error::SynthError;
 use crate::scenario::{FieldChecker, Scenario};
 use crate::system::{Analysis, Factorised, Layout, Pivots, Stiffness};
@@ -85,8 +86,12 @@ pub(crate) struct NeoHookean {
     constants: Vec<(f64, f64)>,
     springs: Vec<(usize, usize, f64)>,
     held: Vec<bool>,
+    /// Nodes a probe may touch (`contact`), and their diagonal stiffness
+    /// at rest along y, which scales their penalties.
+    contact_nodes: Vec<usize>,
+    contact_stiffness: Vec<f64>,
     /// The tangent's pattern: the elements' entries in loop order, then
-    /// the springs'.
+    /// the springs', then a block per contact node.
     layout: Layout,
     /// The analysis of the tangent's free block, shared by every
     /// refactorisation.
@@ -98,6 +103,12 @@ pub(crate) struct NeoHookean {
 /// Convergence: largest residual force below this fraction of the largest
 /// force in the problem.
 const RELATIVE_TOLERANCE: f64 = 1e-10;
+
+/// Convergence under a probe in contact (`contact`): no Newton step
+/// larger than this (m). The penalty's stiffness amplifies rounding in
+/// the residual beyond `RELATIVE_TOLERANCE` of the forces, while a
+/// picometre is far below anything measured.
+const CONTACT_STEP_TOLERANCE: f64 = 1e-12;
 
 /// Convergence of an intermediate state on the way to a load that Newton's
 /// method could not reach at once: only a start for the next.
@@ -112,12 +123,14 @@ const MAX_ITERATIONS: usize = 40;
 const SMALLEST_INCREMENT: f64 = 1.0 / 4096.0;
 
 impl NeoHookean {
-    /// The material `(E, nu)` per region, springs and held components.
+    /// The material `(E, nu)` per region, springs, held components and the
+    /// nodes a probe may touch.
     pub fn new(
         body: &Body,
         moduli: &[(f64, f64)],
         springs: &[(usize, usize, f64)],
         held: Vec<bool>,
+        contact_nodes: &[usize],
     ) -> Result<Self, SynthError> {
         if let Some(&r) = body.regions().iter().find(|&&r| r >= moduli.len()) {
             return Err(SynthError::Factorisation {
@@ -137,16 +150,47 @@ impl NeoHookean {
             }
         }
         positions.extend(springs.iter().map(|&(i, j, _)| (i, j)));
+        let dim = body.dim;
+        for &n in contact_nodes {
+            for i in 0..dim {
+                positions.extend((0..dim).map(|j| (n * dim + i, n * dim + j)));
+            }
+        }
         let layout = Layout::new(body.dof_count(), &positions)?;
         let analysis = Arc::new(layout.analyse(&held, "the neo-Hookean tangent")?);
-        Ok(Self {
+        let mut solver = Self {
             constants: moduli.iter().map(|&(e, nu)| lame(e, nu)).collect(),
             springs: springs.to_vec(),
             held,
+            contact_nodes: contact_nodes.to_vec(),
+            contact_stiffness: Vec::new(),
             layout,
             analysis,
             tangent: Mutex::new(None),
-        })
+        };
+        if !contact_nodes.is_empty() {
+            let rest = solver.tangent_at(body, &vec![0.0; body.dof_count()], None)?;
+            solver.contact_stiffness = contact_nodes
+                .iter()
+                .map(|&n| rest.diagonal(n * dim + 1))
+                .collect();
+        }
+        Ok(solver)
+    }
+
+    /// The probe `punch` touching this solver's contact nodes, no node
+    /// pressed yet.
+    pub(crate) fn contact(&self, punch: Punch) -> Contact {
+        let penalties = self
+            .contact_stiffness
+            .iter()
+            .map(|k| PENALTY_FACTOR * k)
+            .collect();
+        Contact {
+            punch,
+            nodes: self.contact_nodes.clone(),
+            penalties,
+        }
     }
 
     /// Internal forces of the elements plus the springs at `u`.
@@ -159,12 +203,24 @@ impl NeoHookean {
         f
     }
 
-    /// The tangent stiffness at `u`, springs included.
-    pub(crate) fn tangent_at(&self, body: &Body, u: &[f64]) -> Result<Stiffness, SynthError> {
+    /// The tangent stiffness at `u`, springs and a probe's `contact`
+    /// (with or without its curvature term) included.
+    pub(crate) fn tangent_at(
+        &self,
+        body: &Body,
+        u: &[f64],
+        contact: Option<(&Contact, Curvature, &[bool])>,
+    ) -> Result<Stiffness, SynthError> {
         let mut f = vec![0.0; u.len()];
         let mut values = Vec::with_capacity(self.layout.entry_count());
         self.element_loop(body, u, &mut f, Some(&mut values));
         values.extend(self.springs.iter().map(|&(_, _, v)| v));
+        match contact {
+            Some((c, curvature, set)) => {
+                c.tangent_blocks(&body.nodes, body.dim, u, curvature, set, &mut values)
+            }
+            None => values.resize(self.layout.entry_count(), 0.0),
+        }
         self.layout.assemble(&values)
     }
 
@@ -263,23 +319,109 @@ impl NeoHookean {
     /// The tangent at `u` and its factorised free block. Compressive stress
     /// can make the tangent indefinite (large compression with a coarse
     /// mesh; an antisymmetric mode of the whole mirrored slab under a
-    /// probe): then it is factorised as $L D L^T$, and only if that fails
-    /// too the stiffness at rest is used instead, slower to converge but
-    /// always defined.
-    fn factorise_at(&self, body: &Body, u: &[f64]) -> Result<(Stiffness, Factorised), SynthError> {
-        let tangent = self.tangent_at(body, u)?;
+    /// probe; a probe's curvature term where a node has gone deep inside
+    /// it, `contact`): then it is factorised without the probe's curvature
+    /// term, then as $L D L^T$, and only if that fails too the stiffness at
+    /// rest is used instead, slower to converge but always defined.
+    fn factorise_at(
+        &self,
+        body: &Body,
+        u: &[f64],
+        contact: Option<(&Contact, &[bool])>,
+    ) -> Result<(Stiffness, Factorised), SynthError> {
         let what = "the neo-Hookean tangent";
         let analysis = &self.analysis;
-        let factorised = Factorised::with_analysis(analysis, &tangent, what, Pivots::Positive)
-            .or_else(|_| Factorised::with_analysis(analysis, &tangent, what, Pivots::AnySign));
-        match factorised {
-            Ok(f) => Ok((tangent, f)),
-            Err(_) => {
-                let rest = self.tangent_at(body, &vec![0.0; u.len()])?;
-                let what = "the neo-Hookean stiffness at rest";
-                let f = Factorised::with_analysis(analysis, &rest, what, Pivots::Positive)?;
-                Ok((rest, f))
+        let with = |curvature| contact.map(|(c, set)| (c, curvature, set));
+        let exact = self.tangent_at(body, u, with(Curvature::Included))?;
+        if let Ok(f) = Factorised::with_analysis(analysis, &exact, what, Pivots::Positive) {
+            return Ok((exact, f));
+        }
+        if contact.is_some() {
+            let plain = self.tangent_at(body, u, with(Curvature::Left))?;
+            if let Ok(f) = Factorised::with_analysis(analysis, &plain, what, Pivots::Positive) {
+                return Ok((plain, f));
             }
+        }
+        if let Ok(f) = Factorised::with_analysis(analysis, &exact, what, Pivots::AnySign) {
+            return Ok((exact, f));
+        }
+        let rest = self.tangent_at(body, &vec![0.0; u.len()], with(Curvature::Left))?;
+        let what = "the neo-Hookean stiffness at rest";
+        let f = Factorised::with_analysis(analysis, &rest, what, Pivots::Positive)?;
+        Ok((rest, f))
+    }
+
+    /// The linear predictor of a depth step: from `u`, in equilibrium with
+    /// the probe of `contact`, one Newton step with the tangent there for
+    /// the probe moved on by `advance` (`Contact::advance_residual`).
+    fn predict(
+        &self,
+        body: &Body,
+        u: &[f64],
+        contact: &Contact,
+        advance: f64,
+    ) -> Result<Vec<f64>, SynthError> {
+        let set = contact.touching(&body.nodes, body.dim, u);
+        let (_, factorised) = self.factorise_at(body, u, Some((contact, &set)))?;
+        let mut r = contact.advance_residual(&body.nodes, body.dim, u, advance);
+        let mut internal = self.internal_forces(body, u);
+        contact.add_forces(&body.nodes, body.dim, u, &mut internal);
+        for ((ri, fi), held) in r.iter_mut().zip(&internal).zip(&self.held) {
+            *ri = if *held { 0.0 } else { *ri - fi };
+        }
+        let step = factorised.solve(&[&r]).pop().expect("one solution");
+        Ok(u.iter().zip(&step).map(|(a, b)| a + b).collect())
+    }
+
+    /// The Newton step at `u` (residual `r`) under the probe of `contact`:
+    /// the linear model's set of pressed nodes revised by the step's
+    /// linearised penetrations until it no longer changes
+    /// (`Contact::revise`), each revision refactorised. A step taken with
+    /// the set at `u` alone would push a node about to touch the probe
+    /// deep into it, and one about to leave it would be held.
+    fn contact_step(
+        &self,
+        body: &Body,
+        u: &[f64],
+        r: &[f64],
+        contact: &Contact,
+    ) -> Result<Vec<f64>, SynthError> {
+        let (nodes, dim) = (&body.nodes, body.dim);
+        let mut set = contact.touching(nodes, dim, u);
+        let solve = |factorised: &Factorised, set: &[bool], misses: &[f64]| {
+            let correction = contact.set_correction(nodes, dim, u, set, misses);
+            let rs: Vec<f64> = r
+                .iter()
+                .zip(&correction)
+                .zip(&self.held)
+                .map(|((a, b), &held)| if held { 0.0 } else { a + b })
+                .collect();
+            factorised.solve(&[&rs]).pop().expect("one solution")
+        };
+        let mut revisions = 0;
+        loop {
+            let (_, factorised) = self.factorise_at(body, u, Some((contact, &set)))?;
+            let mut step = solve(&factorised, &set, &[]);
+            revisions += 1;
+            if revisions < MAX_SET_REVISIONS && contact.revise(nodes, dim, u, &step, &mut set) {
+                continue;
+            }
+            // A node entering the probe round its edge lands on the plane
+            // tangent where it stood, outside the curve by its second-order
+            // miss: aim it that much further in (a second-order correction,
+            // with the same factorisation).
+            let mut misses = vec![0.0; set.len()];
+            for _ in 0..SECOND_ORDER_CORRECTIONS {
+                let more = contact.misses(nodes, dim, u, &step, &set);
+                if more.iter().all(|&m| m == 0.0) {
+                    break;
+                }
+                for (m, extra) in misses.iter_mut().zip(&more) {
+                    *m = *extra;
+                }
+                step = solve(&factorised, &set, &misses);
+            }
+            return Ok(step);
         }
     }
 
@@ -335,7 +477,7 @@ impl NeoHookean {
             } else {
                 INTERMEDIATE_TOLERANCE
             };
-            match self.newton(body, &mut guard, &reached, &target, &held, tolerance) {
+            match self.newton(body, &mut guard, &reached, &target, &held, tolerance, None) {
                 Ok(u) if last => return Ok(u),
                 Ok(u) => {
                     reached = u;
@@ -378,6 +520,70 @@ impl NeoHookean {
         }
     }
 
+    /// Presses the probe of `contact` from `from` (the state with the probe
+    /// at `from_depth`) to its depth, no other load applied. Each depth
+    /// step starts from a linear predictor (`predict`), the nodes pressed
+    /// at the last depth carried on with the probe: evaluated at the new
+    /// depth instead, the nodes near an edge would start inside the probe
+    /// past its edge's centre and be pushed out sideways. Newton's method
+    /// on the penalty energy (`contact`) then converges from there, its
+    /// steps' lengths chosen along the energy (`along_the_energy`); the
+    /// depth step is halved after a stall and doubled after a success.
+    pub(crate) fn press(
+        &self,
+        body: &Body,
+        from: &[f64],
+        from_depth: f64,
+        contact: &mut Contact,
+    ) -> Result<Vec<f64>, SynthError> {
+        let target = contact.punch.depth;
+        let loads = vec![0.0; from.len()];
+        let mut reached = (from.to_vec(), from_depth);
+        let mut increment = target - from_depth;
+        loop {
+            let depth = (reached.1 + increment).min(target);
+            contact.punch.depth = reached.1;
+            let start = self.predict(body, &reached.0, contact, depth - reached.1)?;
+            contact.punch.depth = depth;
+            let outcome = self.newton(
+                body,
+                &mut None,
+                &start,
+                &loads,
+                &start,
+                RELATIVE_TOLERANCE,
+                Some(contact),
+            );
+            match outcome {
+                Ok(u) if depth == target => return Ok(u),
+                Ok(u) => {
+                    reached = (u, depth);
+                    increment = (2.0 * increment).min(target - depth);
+                }
+                Err(stalled) => {
+                    increment *= 0.5;
+                    if increment < SMALLEST_INCREMENT * (target - from_depth) {
+                        let (stretch, at) = self.most_compressed(body, &reached.0);
+                        return Err(SynthError::NoConvergence {
+                            what: format!(
+                                "the neo-Hookean phantom under the probe (stalled at {:.4} mm \
+                                 of {:.4} mm; most compressed at x = {:.2} mm, y = {:.2} mm, \
+                                 z = {:.2} mm, least principal stretch {stretch:.3})",
+                                1e3 * reached.1,
+                                1e3 * target,
+                                1e3 * at[0],
+                                1e3 * at[1],
+                                1e3 * at[2],
+                            ),
+                            residual: stalled.residual,
+                            iterations: stalled.iterations,
+                        });
+                    }
+                }
+            }
+        }
+    }
+
     /// The least principal stretch over every element's quadrature points
     /// at `u`, and the centroid of its element (rest coordinates): where a
     /// solve that stalls has gone furthest into compression.
@@ -392,7 +598,11 @@ impl NeoHookean {
     /// held components moved to `held`: converged when the largest residual
     /// is below `tolerance` times the force scale, stalled when a step
     /// halved ten times lowers no residual or after
-    /// [`MAX_ITERATIONS`] iterations.
+    /// [`MAX_ITERATIONS`] iterations. Under a probe's `contact` its forces
+    /// join the internal ones, each step is `contact_step`'s with its
+    /// length chosen along the energy (`along_the_energy`; `stored` is
+    /// not used), and a step no larger than [`CONTACT_STEP_TOLERANCE`]
+    /// also counts as converged.
     fn newton(
         &self,
         body: &Body,
@@ -401,6 +611,7 @@ impl NeoHookean {
         loads: &[f64],
         held: &[f64],
         tolerance: f64,
+        contact: Option<&Contact>,
     ) -> Result<Vec<f64>, Stalled> {
         let mut u = from.to_vec();
         let jump: Vec<f64> = (0..u.len())
@@ -421,7 +632,7 @@ impl NeoHookean {
                 residual: f64::INFINITY,
                 iterations: 0,
             };
-            let (tangent, factorised) = self.factorise_at(body, from).map_err(stall)?;
+            let (tangent, factorised) = self.factorise_at(body, from, None).map_err(stall)?;
             let predicted = factorised.solve_prescribed(&tangent, &jump);
             for (ui, di) in u.iter_mut().zip(&predicted) {
                 *ui += di;
@@ -431,16 +642,17 @@ impl NeoHookean {
         // The residual on the free components, and the force scale: the
         // largest external load or internal force (reactions included).
         let residual = |u: &[f64]| -> (Vec<f64>, f64, f64) {
-            let internal = self.internal_forces(body, u);
+            let mut internal = self.internal_forces(body, u);
             let mut scale = 0.0f64;
-            let mut r: Vec<f64> = internal
-                .iter()
-                .zip(loads)
-                .map(|(fi, fe)| {
-                    scale = scale.max(fi.abs()).max(fe.abs());
-                    fe - fi
-                })
-                .collect();
+            for (fi, fe) in internal.iter().zip(loads) {
+                scale = scale.max(fi.abs()).max(fe.abs());
+            }
+            // The scale is the elastic forces': at a node on the probe they
+            // and the contact's cancel.
+            if let Some(c) = contact {
+                c.add_forces(&body.nodes, body.dim, u, &mut internal);
+            }
+            let mut r: Vec<f64> = internal.iter().zip(loads).map(|(fi, fe)| fe - fi).collect();
             for (dof, held) in self.held.iter().enumerate() {
                 if *held {
                     r[dof] = 0.0;
@@ -468,26 +680,29 @@ impl NeoHookean {
             if !norm.is_finite() {
                 return Err(stalled);
             }
-            if stored.is_none() {
-                *stored = Some(self.factorise_at(body, &u).map_err(|_| stalled)?.1);
+            let step = match contact {
+                Some(c) => self.contact_step(body, &u, &r, c).map_err(|_| stalled)?,
+                None => {
+                    if stored.is_none() {
+                        *stored = Some(self.factorise_at(body, &u, None).map_err(|_| stalled)?.1);
+                    }
+                    stored
+                        .as_ref()
+                        .expect("factorised above")
+                        .solve(&[&r])
+                        .pop()
+                        .expect("one solution")
+                }
+            };
+            if contact.is_some() && step.iter().all(|d| d.abs() <= CONTACT_STEP_TOLERANCE) {
+                return Ok(u);
             }
-            let step = stored
-                .as_ref()
-                .expect("factorised above")
-                .solve(&[&r])
-                .pop()
-                .expect("one solution");
-            let mut length = 1.0;
-            let (next, next_r, next_norm, next_scale) = loop {
-                let trial: Vec<f64> = u.iter().zip(&step).map(|(a, b)| a + length * b).collect();
-                let (tr, tn, ts) = residual(&trial);
-                if tn < norm {
-                    break (trial, tr, tn, ts);
-                }
-                if length < 1e-3 {
-                    return Err(stalled);
-                }
-                length *= 0.5;
+            let found = match contact {
+                None => backtrack(&u, &step, norm, &residual),
+                Some(_) => along_the_energy(&u, &step, &r, &residual),
+            };
+            let Some((next, next_r, next_norm, next_scale)) = found else {
+                return Err(stalled);
             };
             // A slowly falling residual means the stored tangent is stale.
             if next_norm > 0.1 * norm || iteration % 10 == 9 {
@@ -507,6 +722,94 @@ impl NeoHookean {
         })
     }
 }
+
+/// A trial state: displacements, residual, its largest component and
+/// the force scale.
+type Trial = (Vec<f64>, Vec<f64>, f64, f64);
+
+/// The residual at a state, its largest component and the force scale.
+type Residual<'a> = dyn Fn(&[f64]) -> (Vec<f64>, f64, f64) + 'a;
+
+/// The first of the steps `u + step`, `u + step / 2`, ... down to a
+/// thousandth whose largest residual is below `norm`.
+fn backtrack(u: &[f64], step: &[f64], norm: f64, residual: &Residual<'_>) -> Option<Trial> {
+    let mut length = 1.0;
+    while length >= 1e-3 {
+        let trial: Vec<f64> = u.iter().zip(step).map(|(a, b)| a + length * b).collect();
+        let (r, n, scale) = residual(&trial);
+        if n < norm {
+            return Some((trial, r, n, scale));
+        }
+        length *= 0.5;
+    }
+    None
+}
+
+/// The step `u + s step` near the minimum of the energy along `step`
+/// (`r` the residual at `u`): the energy's slope along the step is
+/// $\phi'(s) = -r(u + s\,\text{step}) \cdot \text{step}$, and $s$ is
+/// accepted once $|\phi'(s)| \le \tfrac12 |\phi'(0)|$, or at $s = 1$ if
+/// the energy still falls there; otherwise the minimum is bracketed and
+/// found by safeguarded secant steps. A probe's penalty energy is only
+/// once differentiable: a full step that pushes a node far into the
+/// probe raises the largest residual by orders of magnitude though the
+/// energy fell most of the way, so halving the step until the largest
+/// residual falls would stall.
+fn along_the_energy(u: &[f64], step: &[f64], r: &[f64], residual: &Residual<'_>) -> Option<Trial> {
+    let slope = |r: &[f64]| -> f64 { -r.iter().zip(step).map(|(a, b)| a * b).sum::<f64>() };
+    let start = slope(r);
+    if start.is_nan() || start >= 0.0 {
+        return None;
+    }
+    let (mut low, mut low_slope) = (0.0, start);
+    let mut high: Option<(f64, f64, Trial)> = None;
+    let mut length: f64 = 1.0;
+    for _ in 0..60 {
+        let trial: Vec<f64> = u.iter().zip(step).map(|(a, b)| a + length * b).collect();
+        let (tr, tn, scale) = residual(&trial);
+        let s = if tn.is_finite() {
+            slope(&tr)
+        } else {
+            f64::INFINITY
+        };
+        if s.abs() <= 0.5 * start.abs() || (length == 1.0 && s < 0.0) {
+            return Some((trial, tr, tn, scale));
+        }
+        if s > 0.0 {
+            high = Some((length, s, (trial, tr, tn, scale)));
+        } else {
+            (low, low_slope) = (length, s);
+        }
+        let (top, top_slope, _) = high.as_ref()?;
+        let (top, top_slope) = (*top, *top_slope);
+        if top - low < KINK_LENGTH && tn.is_finite() {
+            // The step turns at a kink: a node about to touch the probe
+            // (or leave it). Stop just past it, where the next tangent
+            // carries that node's penalty.
+            return high.map(|(_, _, trial)| trial);
+        }
+        let secant = if top_slope.is_finite() {
+            low - low_slope * (top - low) / (top_slope - low_slope)
+        } else {
+            0.5 * (low + top)
+        };
+        let margin = 0.1 * (top - low);
+        length = secant.clamp(low + margin, top - margin);
+    }
+    None
+}
+
+/// Revisions of the set of pressed nodes in one Newton step under a
+/// probe (`NeoHookean::contact_step`); past them the last set is used.
+const MAX_SET_REVISIONS: usize = 8;
+
+/// Second-order corrections of a Newton step under a probe
+/// (`NeoHookean::contact_step`).
+const SECOND_ORDER_CORRECTIONS: usize = 2;
+
+/// The length of a bracket on a Newton step below which its minimum is
+/// taken to be at a kink of the penalty energy (`along_the_energy`).
+const KINK_LENGTH: f64 = 1e-6;
 
 /// A Newton solve that stopped short: its last residual and iterations.
 #[derive(Debug, Clone, Copy)]
@@ -608,7 +911,7 @@ mod tests {
         for (n, x) in body.nodes.iter().enumerate() {
             u[n * body.dim + 1] = -a * x[1] * x[1] / (2.0 * depth);
         }
-        let solver = world.neo_hookean(1.0, &[]).unwrap();
+        let solver = world.neo_hookean(1.0, &[], &[]).unwrap();
         let (stretch, at) = solver.most_compressed(body, &u);
         let h = body.element_size;
         assert!(
@@ -626,7 +929,7 @@ mod tests {
         let s = small_neo_hookean();
         let world = World::new(&s).unwrap();
         let body = &world.body;
-        let solver = world.neo_hookean(1.0, &[]).unwrap();
+        let solver = world.neo_hookean(1.0, &[], &[]).unwrap();
         let mut loads = vec![0.0; body.dof_count()];
         loads[central_node(&s, body) * body.dim + 1] = 25.6;
         let rest = vec![0.0; body.dof_count()];
@@ -662,14 +965,22 @@ mod tests {
         let s = small_neo_hookean();
         let world = World::new(&s).unwrap();
         let body = &world.body;
-        let solver = world.neo_hookean(1.0, &[]).unwrap();
+        let solver = world.neo_hookean(1.0, &[], &[]).unwrap();
         let node = central_node(&s, body);
         let dofs = body.dof_count();
         let mut loads = vec![0.0; dofs];
         loads[node * body.dim + 1] = -10.0;
         let rest = vec![0.0; dofs];
 
-        let direct = solver.newton(body, &mut None, &rest, &loads, &rest, RELATIVE_TOLERANCE);
+        let direct = solver.newton(
+            body,
+            &mut None,
+            &rest,
+            &loads,
+            &rest,
+            RELATIVE_TOLERANCE,
+            None,
+        );
         assert!(
             direct.is_err(),
             "Newton's method from rest reached the load"
@@ -688,7 +999,15 @@ mod tests {
         for k in 1..=steps {
             let part: Vec<f64> = loads.iter().map(|f| f * k as f64 / steps as f64).collect();
             stepped = solver
-                .newton(body, &mut None, &stepped, &part, &rest, RELATIVE_TOLERANCE)
+                .newton(
+                    body,
+                    &mut None,
+                    &stepped,
+                    &part,
+                    &rest,
+                    RELATIVE_TOLERANCE,
+                    None,
+                )
                 .unwrap();
         }
         let largest = stepped.iter().fold(0.0f64, |m, v| m.max(v.abs()));
