@@ -163,14 +163,30 @@ impl Contact {
         (self.penalties[k] * at.depth.max(0.0), at)
     }
 
-    /// Adds the contact's internal forces $t_n \nabla g$ at `u` to `f`.
-    pub fn add_forces(&self, nodes: &[[f64; 3]], dim: usize, u: &[f64], f: &mut [f64]) {
+    /// Adds `magnitude(k, g)` times $\nabla g$ of each candidate `k` at `u`
+    /// to its node's components of `f`.
+    fn add_along_gradients(
+        &self,
+        nodes: &[[f64; 3]],
+        dim: usize,
+        u: &[f64],
+        f: &mut [f64],
+        magnitude: impl Fn(usize, &Penetration) -> f64,
+    ) {
         for (k, &n) in self.nodes.iter().enumerate() {
-            let (t, at) = self.pressure(k, self.position(k, nodes, dim, u));
+            let at = self.punch.penetration_of(self.position(k, nodes, dim, u));
+            let m = magnitude(k, &at);
             for i in 0..2 {
-                f[n * dim + i] += t * at.gradient[i];
+                f[n * dim + i] += m * at.gradient[i];
             }
         }
+    }
+
+    /// Adds the contact's internal forces $t_n \nabla g$ at `u` to `f`.
+    pub fn add_forces(&self, nodes: &[[f64; 3]], dim: usize, u: &[f64], f: &mut [f64]) {
+        self.add_along_gradients(nodes, dim, u, f, |k, at| {
+            self.penalties[k] * at.depth.max(0.0)
+        });
     }
 
     /// The change of the residual $f - f_{int}$ at `u` when the probe moves
@@ -189,15 +205,13 @@ impl Contact {
         advance: f64,
     ) -> Vec<f64> {
         let mut r = vec![0.0; u.len()];
-        for (k, &n) in self.nodes.iter().enumerate() {
-            let at = self.punch.penetration_of(self.position(k, nodes, dim, u));
+        self.add_along_gradients(nodes, dim, u, &mut r, |k, at| {
             if at.depth >= 0.0 {
-                let grows = -self.penalties[k] * at.gradient[1] * advance;
-                for i in 0..2 {
-                    r[n * dim + i] -= grows * at.gradient[i];
-                }
+                self.penalties[k] * at.gradient[1] * advance
+            } else {
+                0.0
             }
-        }
+        });
         r
     }
 
@@ -259,18 +273,14 @@ impl Contact {
         misses: &[f64],
     ) -> Vec<f64> {
         let mut r = vec![0.0; u.len()];
-        for (k, &n) in self.nodes.iter().enumerate() {
-            let at = self.punch.penetration_of(self.position(k, nodes, dim, u));
+        self.add_along_gradients(nodes, dim, u, &mut r, |k, at| {
             let miss = misses.get(k).copied().unwrap_or(0.0);
-            let force = match (set[k], at.depth >= 0.0) {
+            match (set[k], at.depth >= 0.0) {
                 (true, false) => -self.penalties[k] * (at.depth + miss),
                 (false, true) => self.penalties[k] * at.depth,
-                _ => continue,
-            };
-            for i in 0..2 {
-                r[n * dim + i] += force * at.gradient[i];
+                _ => 0.0,
             }
-        }
+        });
         r
     }
 
