@@ -218,7 +218,10 @@ impl Contact {
     /// The nodes inside the probe or on its surface at `u`.
     pub fn touching(&self, nodes: &[[f64; 3]], dim: usize, u: &[f64]) -> Vec<bool> {
         (0..self.nodes.len())
-            .map(|k| self.pressure(k, self.position(k, nodes, dim, u)).1.depth >= 0.0)
+            .map(|k| {
+                let p = self.position(k, nodes, dim, u);
+                self.punch.penetration_of(p).depth >= 0.0
+            })
             .collect()
     }
 

@@ -26,6 +26,11 @@
 //! the range where a neo-Hookean surface stays smooth
 //! (`docs/truth-world.md`). At small strains the tangent equals the linear
 //! stiffness, so the effect only shows at large strains.
+//!
+//! A probe with rounded edges (`ProbeTrial.edge_radius`) presses this
+//! material in frictionless contact instead of holding the nodes under a
+//! flat face: `NeoHookean::press`, with the penalty and the Newton step
+//! of `contact`.
 
 use std::sync::{Arc, Mutex};
 
