@@ -415,14 +415,10 @@ impl NeoHookean {
             // tangent where it stood, outside the curve by its second-order
             // miss: aim it that much further in (a second-order correction,
             // with the same factorisation).
-            let mut misses = vec![0.0; set.len()];
             for _ in 0..SECOND_ORDER_CORRECTIONS {
-                let more = contact.misses(nodes, dim, u, &step, &set);
-                if more.iter().all(|&m| m == 0.0) {
+                let misses = contact.misses(nodes, dim, u, &step, &set);
+                if misses.iter().all(|&m| m == 0.0) {
                     break;
-                }
-                for (m, extra) in misses.iter_mut().zip(&more) {
-                    *m = *extra;
                 }
                 step = solve(&factorised, &set, &misses);
             }
@@ -787,7 +783,7 @@ fn along_the_energy(u: &[f64], step: &[f64], r: &[f64], residual: &Residual<'_>)
         }
         let (top, top_slope, _) = high.as_ref()?;
         let (top, top_slope) = (*top, *top_slope);
-        if top - low < KINK_LENGTH && tn.is_finite() {
+        if top - low < KINK_LENGTH && top_slope.is_finite() {
             // The step turns at a kink: a node about to touch the probe
             // (or leave it). Stop just past it, where the next tangent
             // carries that node's penalty.
