@@ -62,6 +62,8 @@
 //! 1.4e-11 m and the probe's force by 7e-7 of itself (the file's first
 //! probe at refinement 2, 1 mm deep; `docs/truth-world.md`, session 45).
 
+use crate::low_rank::Blocks;
+
 /// A node's penalty, in units of its own diagonal stiffness at rest.
 pub(crate) const PENALTY_FACTOR: f64 = 1e5;
 
@@ -86,6 +88,15 @@ pub(crate) struct Punch {
     pub edge_radius: f64,
     /// How far the face has moved into the phantom along +y (m).
     pub depth: f64,
+}
+
+/// The nodes a tangent presses and the state it was evaluated at.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Pressed<'a> {
+    /// The displacements.
+    pub at: &'a [f64],
+    /// Per candidate node, whether it carries its penalty block.
+    pub set: &'a [bool],
 }
 
 /// The signed penetration of a point and its gradient.
@@ -225,6 +236,33 @@ impl Contact {
             .collect()
     }
 
+    /// Candidate `k`'s tangent block at `u` in the x-y plane, as if it
+    /// were pressed: $k_n \nabla g\, \nabla g^T - t_n \kappa\, (I -
+    /// \nabla g\, \nabla g^T)$, the curvature term as asked.
+    fn block(
+        &self,
+        k: usize,
+        nodes: &[[f64; 3]],
+        dim: usize,
+        u: &[f64],
+        curvature: Curvature,
+    ) -> [[f64; 2]; 2] {
+        let (t, at) = self.pressure(k, self.position(k, nodes, dim, u));
+        let (g, kappa) = (at.gradient, at.curvature);
+        let bent = match curvature {
+            Curvature::Included => t * kappa,
+            Curvature::Left => 0.0,
+        };
+        let mut b = [[0.0; 2]; 2];
+        for (i, row) in b.iter_mut().enumerate() {
+            for (j, v) in row.iter_mut().enumerate() {
+                let identity = if i == j { 1.0 } else { 0.0 };
+                *v = self.penalties[k] * g[i] * g[j] - bent * (identity - g[i] * g[j]);
+            }
+        }
+        b
+    }
+
     /// The contact's tangent blocks at `u` for the nodes of `set`, node by
     /// node, each `dim` x `dim` row-major (zero outside x-y and for a node
     /// outside the set). The curvature term needs a node pressed.
@@ -238,24 +276,54 @@ impl Contact {
         values: &mut Vec<f64>,
     ) {
         for (k, &inside) in set.iter().enumerate() {
-            let (t, at) = self.pressure(k, self.position(k, nodes, dim, u));
-            let (g, kappa) = (at.gradient, at.curvature);
-            let bent = match curvature {
-                Curvature::Included => t * kappa,
-                Curvature::Left => 0.0,
-            };
+            let b = inside.then(|| self.block(k, nodes, dim, u, curvature));
             for i in 0..dim {
                 for j in 0..dim {
-                    let v = if inside && i < 2 && j < 2 {
-                        let identity = if i == j { 1.0 } else { 0.0 };
-                        self.penalties[k] * g[i] * g[j] - bent * (identity - g[i] * g[j])
-                    } else {
-                        0.0
-                    };
-                    values.push(v);
+                    values.push(match b {
+                        Some(b) if i < 2 && j < 2 => b[i][j],
+                        _ => 0.0,
+                    });
                 }
             }
         }
+    }
+
+    /// How the contact's part of a tangent changes from `factored` to
+    /// `now`: each node whose block differs (it joins or leaves the set,
+    /// or it is pressed in both on a curved edge, where its block turns
+    /// with it) adds its block at `now` and takes back its block at
+    /// `factored` (`low_rank`). Components `held` are left out, as the
+    /// factorisation leaves them.
+    pub fn set_change(
+        &self,
+        nodes: &[[f64; 3]],
+        dim: usize,
+        curvature: Curvature,
+        factored: Pressed<'_>,
+        now: Pressed<'_>,
+        held: &[bool],
+    ) -> Blocks {
+        let mut change = Blocks::none();
+        let block = |k: usize, pressed: Pressed<'_>| {
+            pressed.set[k].then(|| self.block(k, nodes, dim, pressed.at, curvature))
+        };
+        for (k, &n) in self.nodes.iter().enumerate() {
+            let (before, after) = (block(k, factored), block(k, now));
+            if before == after {
+                continue;
+            }
+            let (before, after) = (before.unwrap_or_default(), after.unwrap_or_default());
+            let free: Vec<usize> = (0..2).filter(|&i| !held[n * dim + i]).collect();
+            change
+                .dofs
+                .push(free.iter().map(|&i| n * dim + i).collect());
+            change.values.push(
+                free.iter()
+                    .flat_map(|&i| free.iter().map(move |&j| after[i][j] - before[i][j]))
+                    .collect(),
+            );
+        }
+        change
     }
 
     /// What turns the residual at `u` into that of the linear model in
@@ -573,6 +641,71 @@ mod tests {
         let advance = contact.advance_residual(&nodes, dim, &u, 0.0001);
         assert!((advance[1] - 2e4 * 0.0001).abs() < 1e-12);
         assert!(advance[3..].iter().all(|&r| r == 0.0));
+    }
+
+    #[test]
+    fn a_set_change_carries_one_tangents_contact_blocks_to_anothers() {
+        let (nodes, contact) = three_nodes();
+        let dim = 3;
+        // Factored: node 0 on the face, node 1 round the edge, both
+        // pressed. Now: node 0 pressed where it was, node 1 further round
+        // the edge, node 2 (clear, nearest the probe's side) in the set;
+        // node 2's y held.
+        let at = |angle: f64| {
+            let (s, co) = angle.sin_cos();
+            [0.0315 + 0.0004 * co - nodes[1][0], 0.0005 + 0.0004 * s]
+        };
+        let mut factored_u = vec![0.0; 9];
+        factored_u[1] = 0.0007;
+        [factored_u[3], factored_u[4]] = at(std::f64::consts::FRAC_PI_4);
+        let mut now_u = factored_u.clone();
+        [now_u[3], now_u[4]] = at(1.0);
+        assert!((now_u[3] - factored_u[3]).abs() > 1e-5);
+        let factored_set = [true, true, false];
+        let now_set = [true, true, true];
+        let held: Vec<bool> = (0..9).map(|dof| dof == 7).collect();
+        let change = contact.set_change(
+            &nodes,
+            dim,
+            Curvature::Included,
+            Pressed {
+                at: &factored_u,
+                set: &factored_set,
+            },
+            Pressed {
+                at: &now_u,
+                set: &now_set,
+            },
+            &held,
+        );
+        // Node 0's block is the same in both and is left out; node 2 has
+        // its x component only.
+        assert_eq!(change.dofs, vec![vec![3, 4], vec![6]]);
+        let blocks = |u: &[f64], set: &[bool]| {
+            let mut values = Vec::new();
+            contact.tangent_blocks(&nodes, dim, u, Curvature::Included, set, &mut values);
+            values
+        };
+        let mut carried = blocks(&factored_u, &factored_set);
+        for (dofs, values) in change.dofs.iter().zip(&change.values) {
+            for (i, &a) in dofs.iter().enumerate() {
+                for (j, &b) in dofs.iter().enumerate() {
+                    // Node n's block starts at n * dim * dim, row-major.
+                    let (n, ri, rj) = (a / dim, a % dim, b % dim);
+                    carried[n * dim * dim + ri * dim + rj] += values[i * dofs.len() + j];
+                }
+            }
+        }
+        let expected = blocks(&now_u, &now_set);
+        for (k, (got, want)) in carried.iter().zip(&expected).enumerate() {
+            assert!(
+                (got - want).abs() <= 1e-9 * 4e4,
+                "entry {k}: {got} against {want}"
+            );
+        }
+        // Node 2, clear of the probe, joins with its penalty along the
+        // side's normal and no curvature term.
+        assert!((carried[18] - 4e4).abs() < 1e-9);
     }
 
     #[test]

@@ -79,6 +79,7 @@ mod contact;
 mod grid;
 mod line_response;
 mod local_mesh;
+mod low_rank;
 mod marker_mesh;
 mod ordering;
 mod presets;

@@ -335,6 +335,11 @@ impl Factorised {
         })
     }
 
+    /// The number of components, held ones included.
+    pub fn size(&self) -> usize {
+        self.analysis.reduced.len()
+    }
+
     /// Solves for several load vectors at once (full size; entries on held
     /// components are ignored) with the held components at zero.
     pub fn solve(&self, loads: &[&[f64]]) -> Vec<Vec<f64>> {

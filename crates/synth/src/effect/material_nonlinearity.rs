@@ -39,8 +39,9 @@ use serde::{Deserialize, Serialize};
 
 use super::{EffectId, TruthEffect};
 use crate::body::Body;
-use crate::contact::{Contact, Curvature, PENALTY_FACTOR, Punch};
+use crate::contact::{Contact, Curvature, PENALTY_FACTOR, Pressed, Punch};
 use crate::error::SynthError;
+use crate::low_rank::{Blocks, Updated};
 use crate::scenario::{FieldChecker, Scenario};
 use crate::system::{Analysis, Factorised, Layout, Pivots, Stiffness};
 
@@ -103,6 +104,24 @@ pub(crate) struct NeoHookean {
     analysis: Arc<Analysis>,
     /// The tangent last factorised, reused while it converges fast.
     tangent: Mutex<Option<Factorised>>,
+}
+
+/// Which tangent a factorisation holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Tangent {
+    /// At the state asked for, a probe's curvature term as given.
+    At(Curvature),
+    /// The stiffness at rest, where the tangent could not be factorised.
+    AtRest,
+}
+
+/// A factorised tangent kept for later Newton iterations under a probe:
+/// the nodes it pressed and the state it was evaluated at.
+struct Kept {
+    factorised: Factorised,
+    tangent: Tangent,
+    set: Vec<bool>,
+    at: Vec<f64>,
 }
 
 /// Convergence: largest residual force below this fraction of the largest
@@ -333,27 +352,27 @@ impl NeoHookean {
         body: &Body,
         u: &[f64],
         contact: Option<(&Contact, &[bool])>,
-    ) -> Result<(Stiffness, Factorised), SynthError> {
+    ) -> Result<(Stiffness, Factorised, Tangent), SynthError> {
         let what = "the neo-Hookean tangent";
         let analysis = &self.analysis;
         let with = |curvature| contact.map(|(c, set)| (c, curvature, set));
         let exact = self.tangent_at(body, u, with(Curvature::Included))?;
         if let Ok(f) = Factorised::with_analysis(analysis, &exact, what, Pivots::Positive) {
-            return Ok((exact, f));
+            return Ok((exact, f, Tangent::At(Curvature::Included)));
         }
         if contact.is_some() {
             let plain = self.tangent_at(body, u, with(Curvature::Left))?;
             if let Ok(f) = Factorised::with_analysis(analysis, &plain, what, Pivots::Positive) {
-                return Ok((plain, f));
+                return Ok((plain, f, Tangent::At(Curvature::Left)));
             }
         }
         if let Ok(f) = Factorised::with_analysis(analysis, &exact, what, Pivots::AnySign) {
-            return Ok((exact, f));
+            return Ok((exact, f, Tangent::At(Curvature::Included)));
         }
         let rest = self.tangent_at(body, &vec![0.0; u.len()], with(Curvature::Left))?;
         let what = "the neo-Hookean stiffness at rest";
         let f = Factorised::with_analysis(analysis, &rest, what, Pivots::Positive)?;
-        Ok((rest, f))
+        Ok((rest, f, Tangent::AtRest))
     }
 
     /// The linear predictor of a depth step: from `u`, in equilibrium with
@@ -367,7 +386,7 @@ impl NeoHookean {
         advance: f64,
     ) -> Result<Vec<f64>, SynthError> {
         let set = contact.touching(&body.nodes, body.dim, u);
-        let (_, factorised) = self.factorise_at(body, u, Some((contact, &set)))?;
+        let (_, factorised, _) = self.factorise_at(body, u, Some((contact, &set)))?;
         let mut r = contact.advance_residual(&body.nodes, body.dim, u, advance);
         let mut internal = self.internal_forces(body, u);
         contact.add_forces(&body.nodes, body.dim, u, &mut internal);
@@ -381,46 +400,86 @@ impl NeoHookean {
     /// The Newton step at `u` (residual `r`) under the probe of `contact`:
     /// the linear model's set of pressed nodes revised by the step's
     /// linearised penetrations until it no longer changes
-    /// (`Contact::revise`), each revision refactorised. A step taken with
-    /// the set at `u` alone would push a node about to touch the probe
-    /// deep into it, and one about to leave it would be held.
+    /// (`Contact::revise`). A step taken with the set at `u` alone would
+    /// push a node about to touch the probe deep into it, and one about to
+    /// leave it would be held.
+    ///
+    /// The tangent factorised in `kept` (made here at `u` when there is
+    /// none) serves every revision and may be an earlier iterate's: the
+    /// contact blocks that differ from the ones it was factorised with
+    /// (nodes joining or leaving the set, nodes turning round an edge) are
+    /// applied at solve time (`low_rank`), so only the elastic part may be
+    /// stale. A stiffness-at-rest fallback is refactorised for each
+    /// revision instead and not kept.
     fn contact_step(
         &self,
         body: &Body,
         u: &[f64],
         r: &[f64],
         contact: &Contact,
+        kept: &mut Option<Kept>,
     ) -> Result<Vec<f64>, SynthError> {
         let (nodes, dim) = (&body.nodes, body.dim);
         let mut set = contact.touching(nodes, dim, u);
-        let solve = |factorised: &Factorised, set: &[bool], misses: &[f64]| {
+        let load = |set: &[bool], misses: &[f64]| -> Vec<f64> {
             let correction = contact.set_correction(nodes, dim, u, set, misses);
-            let rs: Vec<f64> = r
-                .iter()
+            r.iter()
                 .zip(&correction)
                 .zip(&self.held)
                 .map(|((a, b), &held)| if held { 0.0 } else { a + b })
-                .collect();
-            factorised.solve(&[&rs]).pop().expect("one solution")
+                .collect()
+        };
+        let factorise = |set: &[bool]| -> Result<Kept, SynthError> {
+            let (_, factorised, tangent) = self.factorise_at(body, u, Some((contact, set)))?;
+            Ok(Kept {
+                factorised,
+                tangent,
+                set: set.to_vec(),
+                at: u.to_vec(),
+            })
+        };
+        let mut current = match kept.take() {
+            Some(k) => k,
+            None => factorise(&set)?,
         };
         let mut revisions = 0;
         loop {
-            let (_, factorised) = self.factorise_at(body, u, Some((contact, &set)))?;
-            let mut step = solve(&factorised, &set, &[]);
+            let updated = match current.tangent {
+                Tangent::At(curvature) => {
+                    let factored = Pressed {
+                        at: &current.at,
+                        set: &current.set,
+                    };
+                    let now = Pressed { at: u, set: &set };
+                    let change =
+                        contact.set_change(nodes, dim, curvature, factored, now, &self.held);
+                    Updated::new(&current.factorised, &change)
+                }
+                Tangent::AtRest => Updated::new(&current.factorised, &Blocks::none()),
+            };
+            let mut step = updated.solve(&load(&set, &[]));
             revisions += 1;
             if revisions < MAX_SET_REVISIONS && contact.revise(nodes, dim, u, &step, &mut set) {
+                if current.tangent == Tangent::AtRest {
+                    drop(updated);
+                    current = factorise(&set)?;
+                }
                 continue;
             }
             // A node entering the probe round its edge lands on the plane
             // tangent where it stood, outside the curve by its second-order
             // miss: aim it that much further in (a second-order correction,
-            // with the same factorisation).
+            // with the same tangent).
             for _ in 0..SECOND_ORDER_CORRECTIONS {
                 let misses = contact.misses(nodes, dim, u, &step, &set);
                 if misses.iter().all(|&m| m == 0.0) {
                     break;
                 }
-                step = solve(&factorised, &set, &misses);
+                step = updated.solve(&load(&set, &misses));
+            }
+            drop(updated);
+            if current.tangent != Tangent::AtRest {
+                *kept = Some(current);
             }
             return Ok(step);
         }
@@ -603,7 +662,10 @@ impl NeoHookean {
     /// join the internal ones, each step is `contact_step`'s with its
     /// length chosen along the energy (`along_the_energy`; `stored` is
     /// not used), and a step no larger than [`CONTACT_STEP_TOLERANCE`]
-    /// also counts as converged.
+    /// also counts as converged. There the tangent is refactorised only
+    /// when the longest step has not halved since the last iteration, or
+    /// when a kept tangent's step finds no lower energy: while steps
+    /// halve, what is left of the error is below the last step.
     fn newton(
         &self,
         body: &Body,
@@ -633,7 +695,7 @@ impl NeoHookean {
                 residual: f64::INFINITY,
                 iterations: 0,
             };
-            let (tangent, factorised) = self.factorise_at(body, from, None).map_err(stall)?;
+            let (tangent, factorised, _) = self.factorise_at(body, from, None).map_err(stall)?;
             let predicted = factorised.solve_prescribed(&tangent, &jump);
             for (ui, di) in u.iter_mut().zip(&predicted) {
                 *ui += di;
@@ -670,6 +732,8 @@ impl NeoHookean {
             (r, norm, scale)
         };
         let (mut r, mut norm, mut scale) = residual(&u);
+        let mut kept: Option<Kept> = None;
+        let mut last_longest = f64::INFINITY;
         for iteration in 0..MAX_ITERATIONS {
             if norm <= tolerance * scale {
                 return Ok(u);
@@ -682,7 +746,9 @@ impl NeoHookean {
                 return Err(stalled);
             }
             let step = match contact {
-                Some(c) => self.contact_step(body, &u, &r, c).map_err(|_| stalled)?,
+                Some(c) => self
+                    .contact_step(body, &u, &r, c, &mut kept)
+                    .map_err(|_| stalled)?,
                 None => {
                     if stored.is_none() {
                         *stored = Some(self.factorise_at(body, &u, None).map_err(|_| stalled)?.1);
@@ -702,9 +768,22 @@ impl NeoHookean {
                 None => backtrack(&u, &step, norm, &residual),
                 Some(_) => along_the_energy(&u, &step, &r, &residual),
             };
+            let longest = step.iter().fold(0.0f64, |m, d| m.max(d.abs()));
+            let kept_was_fresh = kept.as_ref().is_some_and(|k| k.at == u);
             let Some((next, next_r, next_norm, next_scale)) = found else {
+                if contact.is_some() && kept.is_some() && !kept_was_fresh {
+                    // An earlier tangent's step: retry with the tangent here.
+                    kept = None;
+                    continue;
+                }
                 return Err(stalled);
             };
+            // Under a probe, a kept tangent serves while the steps at
+            // least halve; past that it is stale.
+            if longest > 0.5 * last_longest {
+                kept = None;
+            }
+            last_longest = longest;
             // A slowly falling residual means the stored tangent is stale.
             if next_norm > 0.1 * norm || iteration % 10 == 9 {
                 *stored = None;
