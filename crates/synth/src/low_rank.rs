@@ -3,9 +3,10 @@
 //!
 //! A probe's Newton step revises which nodes it presses, and each revision
 //! adds or removes a node's 2 x 2 penalty block (`contact`); refactorising
-//! the whole tangent for that is most of a step's cost. With
-//! $K$ factorised ($L L^T$, or $L D L^T$) and the change $E B E^T$ ($E$ the unit columns
-//! of the $m$ components the blocks touch, $B$ their $m \times m$ values),
+//! the whole tangent for that is most of a step's cost. With $K$
+//! factorised ($L L^T$, or $L D L^T$) and the change $E B E^T$ ($E$ the
+//! unit columns of the $m$ components the blocks touch, $B$ their
+//! $m \times m$ values),
 //! $$(K + E B E^T)\, x = r$$
 //! is solved as $x = x_0 - Z y$ with $x_0 = K^{-1} r$, $Z = K^{-1} E$ and
 //! $$(I + B C)\, y = B E^T x_0, \qquad C = E^T Z,$$

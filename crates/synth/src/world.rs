@@ -15,7 +15,7 @@ use needle_fem::material::Materials;
 use crate::body::{Body, Location};
 use crate::effect::material_nonlinearity::NeoHookean;
 use crate::error::SynthError;
-use crate::scenario::Scenario;
+use crate::scenario::{ProbeTrial, Scenario};
 use crate::slab_mesh::{MaterialPaths, Span};
 use crate::system::{Factorised, Stiffness};
 
@@ -37,6 +37,31 @@ pub(crate) struct World<'s> {
     pub marker_locations: Vec<Location>,
     /// The day-0 linear system with the supports held, once made.
     reference: Mutex<Option<Arc<LinearSystem>>>,
+}
+
+/// The lines in x at which a probe's contact can end, graded like a
+/// singular line in plane strain (`grid`): a flat punch's two edges
+/// (its nodes under the face are held, and only they); for a rounded
+/// probe, lines a quarter of its radius apart over twice its width,
+/// $|x - x_p| \le 2a$. Under a frictionless probe the face slides
+/// sideways as the probe goes in (under the first probe of
+/// `material-nonlinearity.ron`, 0.54 mm at 1 mm deep, and the marker under
+/// its centre 1.76 mm at 4 mm), so where the
+/// contact ends moves, in the phantom's rest coordinates, across the
+/// footprint and beyond it. Graded at the punch's edges alone, or over
+/// its rounded edges' bands $a - r \le |x - x_p| \le a$ alone, the
+/// contact ended in coarser elements and refinement 6 and 12 differed by
+/// 14 and 10 um at 1 mm deep; graded over the footprint, by 0.10 um
+/// (`docs/truth-world.md`, session 46).
+fn edge_lines(probe: &ProbeTrial) -> Vec<f64> {
+    let a = probe.width / 2.0;
+    let mut lines = vec![probe.x - a, probe.x + a];
+    if let Some(r) = probe.edge_radius {
+        let spacing = r / 4.0;
+        let count = (4.0 * a / spacing).round() as usize;
+        lines.extend((0..=count).map(|j| probe.x - 2.0 * a + spacing * j as f64));
+    }
+    lines
 }
 
 impl<'s> World<'s> {
@@ -76,11 +101,7 @@ impl<'s> World<'s> {
         paths: Option<&MaterialPaths>,
     ) -> Result<Self, SynthError> {
         let p = &scenario.phantom;
-        let edges: Vec<f64> = scenario
-            .probes
-            .iter()
-            .flat_map(|probe| [probe.x - probe.width / 2.0, probe.x + probe.width / 2.0])
-            .collect();
+        let edges: Vec<f64> = scenario.probes.iter().flat_map(edge_lines).collect();
         let mut x_lines: Vec<f64> = scenario.needles.plan().iter().map(|n| n.line).collect();
         x_lines.extend(scenario.probes.iter().map(|probe| probe.x));
         x_lines.extend(&edges);
