@@ -1563,7 +1563,7 @@ fn neo_hookean_truth_discretisation_error_is_below_a_tenth_of_the_marker_noise()
 /// slides sideways (0.54 mm at 1 mm deep for this probe), so where the
 /// contact ends moves across the footprint as the probe goes in.
 #[test]
-#[ignore = "half an hour: mesh convergence of the rounded probe in contact"]
+#[ignore = "40 minutes: mesh convergence of the rounded probe in contact"]
 fn rounded_probe_truth_discretisation_error_is_below_a_tenth_of_the_marker_noise() {
     let rounded = |refinement| {
         let mut s = neo_hookean_probe(refinement, 3);
