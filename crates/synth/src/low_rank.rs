@@ -8,18 +8,28 @@
 //! unit columns of the $m$ components the blocks touch, $B$ their
 //! $m \times m$ values),
 //! $$(K + E B E^T)\, x = r$$
-//! is solved as $x = x_0 - Z y$ with $x_0 = K^{-1} r$, $Z = K^{-1} E$ and
-//! $$(I + B C)\, y = B E^T x_0, \qquad C = E^T Z,$$
-//! which follows from $y = B E^T x$. This form needs no $B^{-1}$: a node's
-//! penalty block $k\, \nabla g\, \nabla g^T$ is singular. The $m$ solves
-//! for $Z$ are made once per change, together, and each further right-hand
-//! side costs one solve and an $m \times m$ back-substitution.
+//! is solved through $y = B E^T x$: from $K x = r - E y$,
+//! $E^T x = E^T x_0 - C y$ with $x_0 = K^{-1} r$ and $C = E^T K^{-1} E$,
+//! so
+//! $$(I + B C)\, y = B E^T x_0, \qquad x = K^{-1} (r - E y).$$
+//! This form needs no $B^{-1}$: a node's penalty block
+//! $k\, \nabla g\, \nabla g^T$ is singular. Each right-hand side costs two
+//! solves and an $m \times m$ back-substitution.
+//!
+//! $C$ takes one solve per component, and the same components recur: the
+//! nodes at the contact's ends join and leave in revision after revision
+//! and iteration after iteration against one factorisation. [`Compliances`]
+//! keeps the entries of $K^{-1}$ between the components met so far (only
+//! those, not the full columns: a column is as long as the mesh), so a
+//! change solves only for the components new to it.
 //!
 //! Written here because faer updates dense Cholesky factors by low rank
 //! but not its sparse supernodal ones, and because an update in place
 //! would change the factor itself, while one Newton step tries several
 //! sets of pressed nodes, and later steps other ones, against the same
 //! factorisation.
+
+use std::collections::HashMap;
 
 use nalgebra::{DMatrix, DVector};
 
@@ -44,12 +54,65 @@ impl Blocks {
     }
 }
 
+/// The entries of $K^{-1}$ between the components met so far, for one
+/// factorisation of $K$.
+#[derive(Default)]
+pub(crate) struct Compliances {
+    /// Each component met's position in `rows`.
+    position: HashMap<usize, usize>,
+    /// Row $i$: $(K^{-1})_{ij}$ for $j \le i$, in the order met ($K^{-1}$
+    /// is symmetric).
+    rows: Vec<Vec<f64>>,
+}
+
+impl Compliances {
+    /// Solves for the columns of the components in `dofs` not met yet, all
+    /// at once, and keeps their entries at every component met.
+    fn meet(&mut self, factorised: &Factorised, dofs: &[usize]) {
+        let mut new: Vec<usize> = dofs
+            .iter()
+            .copied()
+            .filter(|d| !self.position.contains_key(d))
+            .collect();
+        new.sort_unstable();
+        new.dedup();
+        if new.is_empty() {
+            return;
+        }
+        let size = factorised.size();
+        let units: Vec<Vec<f64>> = new
+            .iter()
+            .map(|&dof| {
+                let mut e = vec![0.0; size];
+                e[dof] = 1.0;
+                e
+            })
+            .collect();
+        let refs: Vec<&[f64]> = units.iter().map(Vec::as_slice).collect();
+        let columns = factorised.solve(&refs);
+        let mut met: Vec<usize> = vec![0; self.position.len()];
+        for (&dof, &i) in &self.position {
+            met[i] = dof;
+        }
+        for (dof, column) in new.into_iter().zip(columns) {
+            met.push(dof);
+            self.position.insert(dof, self.rows.len());
+            self.rows
+                .push(met.iter().map(|&other| column[other]).collect());
+        }
+    }
+
+    /// $(K^{-1})_{ij}$ for two components met.
+    fn entry(&self, i: usize, j: usize) -> f64 {
+        let (a, b) = (self.position[&i], self.position[&j]);
+        self.rows[a.max(b)][a.min(b)]
+    }
+}
+
 /// A factorisation with a low-rank change applied at solve time.
 pub(crate) struct Updated<'a> {
     factorised: &'a Factorised,
     dofs: Vec<usize>,
-    /// $Z = K^{-1} E$, one full-size column per component.
-    responses: Vec<Vec<f64>>,
     /// $B$, block diagonal.
     coupling: DMatrix<f64>,
     /// $I + B C$, factorised.
@@ -57,8 +120,9 @@ pub(crate) struct Updated<'a> {
 }
 
 impl<'a> Updated<'a> {
-    /// `factorised` changed by `blocks`.
-    pub fn new(factorised: &'a Factorised, blocks: &Blocks) -> Self {
+    /// `factorised` changed by `blocks`; `compliances` belong to
+    /// `factorised` and gain the components the change meets first.
+    pub fn new(factorised: &'a Factorised, compliances: &mut Compliances, blocks: &Blocks) -> Self {
         let dofs: Vec<usize> = blocks.dofs.iter().flatten().copied().collect();
         let m = dofs.len();
         let mut coupling = DMatrix::zeros(m, m);
@@ -72,27 +136,12 @@ impl<'a> Updated<'a> {
             }
             at += b;
         }
-        let size = factorised.size();
-        let units: Vec<Vec<f64>> = dofs
-            .iter()
-            .map(|&dof| {
-                let mut e = vec![0.0; size];
-                e[dof] = 1.0;
-                e
-            })
-            .collect();
-        let refs: Vec<&[f64]> = units.iter().map(Vec::as_slice).collect();
-        let responses = if m == 0 {
-            Vec::new()
-        } else {
-            factorised.solve(&refs)
-        };
-        let compliance = DMatrix::from_fn(m, m, |i, j| responses[j][dofs[i]]);
+        compliances.meet(factorised, &dofs);
+        let compliance = DMatrix::from_fn(m, m, |i, j| compliances.entry(dofs[i], dofs[j]));
         let system = (DMatrix::identity(m, m) + &coupling * compliance).lu();
         Self {
             factorised,
             dofs,
-            responses,
             coupling,
             system,
         }
@@ -101,7 +150,7 @@ impl<'a> Updated<'a> {
     /// Solves the changed system for `r` (full size; held components are
     /// ignored and come back zero, as `Factorised::solve`'s).
     pub fn solve(&self, r: &[f64]) -> Vec<f64> {
-        let mut x = self.factorised.solve(&[r]).pop().expect("one solution");
+        let x = self.factorised.solve(&[r]).pop().expect("one solution");
         if self.dofs.is_empty() {
             return x;
         }
@@ -110,12 +159,14 @@ impl<'a> Updated<'a> {
             .system
             .solve(&(&self.coupling * picked))
             .expect("I + B C is regular for a change that keeps the matrix regular");
-        for (column, &yj) in self.responses.iter().zip(y.iter()) {
-            for (xi, zi) in x.iter_mut().zip(column) {
-                *xi -= zi * yj;
-            }
+        let mut relieved = r.to_vec();
+        for (&dof, yj) in self.dofs.iter().zip(y.iter()) {
+            relieved[dof] -= yj;
         }
-        x
+        self.factorised
+            .solve(&[&relieved])
+            .pop()
+            .expect("one solution")
     }
 }
 
@@ -201,11 +252,52 @@ mod tests {
             let fresh = Factorised::new(&changed, &held, "changed").expect("positive");
             let rhs = &r[..n];
             let expected = fresh.solve(&[rhs]).pop().expect("one");
-            let got = Updated::new(&factorised, &change).solve(rhs);
+            let got = Updated::new(&factorised, &mut Compliances::default(), &change).solve(rhs);
             let scale = expected.iter().fold(0.0f64, |m, v| m.max(v.abs()));
             for (g, e) in got.iter().zip(&expected) {
                 prop_assert!((g - e).abs() <= 1e-9 * scale, "{g} against {e}");
             }
+        }
+    }
+
+    /// Compliances kept from one change serve the next, which meets some
+    /// of the same components and some new ones.
+    #[test]
+    fn compliances_kept_across_changes_solve_as_fresh_ones() {
+        let k = [3.0, 5.0, 7.0, 11.0, 13.0, 17.0];
+        let base = chain(&k, &[]);
+        let held = held(k.len() + 1);
+        let factorised = Factorised::new(&base, &held, "base").expect("positive");
+        let first = Blocks {
+            dofs: vec![vec![2, 3]],
+            values: vec![vec![40.0, 20.0, 20.0, 10.0]],
+        };
+        let second = Blocks {
+            dofs: vec![vec![3, 5], vec![1]],
+            values: vec![vec![30.0, -30.0, -30.0, 30.0], vec![-2.0]],
+        };
+        let r = [0.0, 1.0, -2.0, 0.5, 0.25, 3.0, -1.0];
+        let mut kept = Compliances::default();
+        let _ = Updated::new(&factorised, &mut kept, &first).solve(&r);
+        let reused = Updated::new(&factorised, &mut kept, &second).solve(&r);
+        let fresh = Updated::new(&factorised, &mut Compliances::default(), &second).solve(&r);
+        assert_eq!(kept.rows.len(), 4, "components 2, 3, then 1 and 5");
+        for (a, b) in reused.iter().zip(&fresh) {
+            assert!((a - b).abs() <= 1e-12 * b.abs().max(1.0), "{a} against {b}");
+        }
+        // And the changed system holds: (K + E B E^T) x = r on the free
+        // components.
+        let mut residual = base.multiply(&reused);
+        for (dofs, values) in second.dofs.iter().zip(&second.values) {
+            let b = dofs.len();
+            for i in 0..b {
+                for j in 0..b {
+                    residual[dofs[i]] += values[i * b + j] * reused[dofs[j]];
+                }
+            }
+        }
+        for dof in 1..r.len() {
+            assert!((residual[dof] - r[dof]).abs() < 1e-12, "component {dof}");
         }
     }
 
@@ -217,7 +309,7 @@ mod tests {
         let none = Blocks::none();
         let r = [0.0, 1.0, -2.0, 0.5];
         assert_eq!(
-            Updated::new(&factorised, &none).solve(&r),
+            Updated::new(&factorised, &mut Compliances::default(), &none).solve(&r),
             factorised.solve(&[&r]).pop().expect("one")
         );
     }

@@ -41,7 +41,7 @@ use super::{EffectId, TruthEffect};
 use crate::body::Body;
 use crate::contact::{Contact, Curvature, PENALTY_FACTOR, Pressed, Punch};
 use crate::error::SynthError;
-use crate::low_rank::{Blocks, Updated};
+use crate::low_rank::{Blocks, Compliances, Updated};
 use crate::scenario::{FieldChecker, Scenario};
 use crate::system::{Analysis, Factorised, Layout, Pivots, Stiffness};
 
@@ -119,6 +119,8 @@ enum Tangent {
 /// the nodes it pressed and the state it was evaluated at.
 struct Kept {
     factorised: Factorised,
+    /// The entries of its inverse met by the changes applied to it.
+    compliances: Compliances,
     tangent: Tangent,
     set: Vec<bool>,
     at: Vec<f64>,
@@ -433,6 +435,7 @@ impl NeoHookean {
             let (_, factorised, tangent) = self.factorise_at(body, u, Some((contact, set)))?;
             Ok(Kept {
                 factorised,
+                compliances: Compliances::default(),
                 tangent,
                 set: set.to_vec(),
                 at: u.to_vec(),
@@ -453,9 +456,13 @@ impl NeoHookean {
                     let now = Pressed { at: u, set: &set };
                     let change =
                         contact.set_change(nodes, dim, curvature, factored, now, &self.held);
-                    Updated::new(&current.factorised, &change)
+                    Updated::new(&current.factorised, &mut current.compliances, &change)
                 }
-                Tangent::AtRest => Updated::new(&current.factorised, &Blocks::none()),
+                Tangent::AtRest => Updated::new(
+                    &current.factorised,
+                    &mut current.compliances,
+                    &Blocks::none(),
+                ),
             };
             let mut step = updated.solve(&load(&set, &[]));
             revisions += 1;
