@@ -66,8 +66,15 @@ pub(crate) struct Compliances {
 }
 
 impl Compliances {
-    /// Solves for the columns of the components in `dofs` not met yet, all
-    /// at once, and keeps their entries at every component met.
+    /// Columns solved for together. A column is as long as the mesh and a
+    /// solve holds three copies of each (unit vector, right-hand side,
+    /// solution), while a step's first revision can meet hundreds of
+    /// components: solved all at once, they set the contact solve's peak
+    /// memory (`docs/benchmarks.md`, session 48).
+    const BATCH: usize = 64;
+
+    /// Solves for the columns of the components in `dofs` not met yet, in
+    /// batches, and keeps their entries at every component met.
     fn meet(&mut self, factorised: &Factorised, dofs: &[usize]) {
         let mut new: Vec<usize> = dofs
             .iter()
@@ -80,25 +87,26 @@ impl Compliances {
             return;
         }
         let size = factorised.size();
-        let units: Vec<Vec<f64>> = new
-            .iter()
-            .map(|&dof| {
-                let mut e = vec![0.0; size];
-                e[dof] = 1.0;
-                e
-            })
-            .collect();
-        let refs: Vec<&[f64]> = units.iter().map(Vec::as_slice).collect();
-        let columns = factorised.solve(&refs);
         let mut met: Vec<usize> = vec![0; self.position.len()];
         for (&dof, &i) in &self.position {
             met[i] = dof;
         }
-        for (dof, column) in new.into_iter().zip(columns) {
-            met.push(dof);
-            self.position.insert(dof, self.rows.len());
-            self.rows
-                .push(met.iter().map(|&other| column[other]).collect());
+        for batch in new.chunks(Self::BATCH) {
+            let units: Vec<Vec<f64>> = batch
+                .iter()
+                .map(|&dof| {
+                    let mut e = vec![0.0; size];
+                    e[dof] = 1.0;
+                    e
+                })
+                .collect();
+            let refs: Vec<&[f64]> = units.iter().map(Vec::as_slice).collect();
+            for (&dof, column) in batch.iter().zip(factorised.solve(&refs)) {
+                met.push(dof);
+                self.position.insert(dof, self.rows.len());
+                self.rows
+                    .push(met.iter().map(|&other| column[other]).collect());
+            }
         }
     }
 
@@ -298,6 +306,50 @@ mod tests {
         }
         for dof in 1..r.len() {
             assert!((residual[dof] - r[dof]).abs() < 1e-12, "component {dof}");
+        }
+    }
+
+    /// A change meeting more components than one batch holds is met over
+    /// several batches, and its entries are those of $K^{-1}$: the solve
+    /// satisfies the changed system.
+    #[test]
+    fn a_change_met_over_several_batches_solves_the_changed_system() {
+        let n = 3 * Compliances::BATCH;
+        let k: Vec<f64> = (0..n - 1).map(|i| 2.0 + (i % 7) as f64).collect();
+        let base = chain(&k, &[]);
+        let held = held(n);
+        let factorised = Factorised::new(&base, &held, "base").expect("positive");
+        let change = Blocks {
+            dofs: (1..n - 1).step_by(2).map(|i| vec![i, i + 1]).collect(),
+            values: (1..n - 1)
+                .step_by(2)
+                .map(|i| {
+                    let p = 10.0 + i as f64;
+                    vec![p, -0.5 * p, -0.5 * p, p]
+                })
+                .collect(),
+        };
+        assert!(change.dofs.len() * 2 > 2 * Compliances::BATCH);
+        let r: Vec<f64> = (0..n).map(|i| ((i * 37) % 11) as f64 - 5.0).collect();
+        let mut compliances = Compliances::default();
+        let x = Updated::new(&factorised, &mut compliances, &change).solve(&r);
+        assert_eq!(compliances.rows.len(), n - 2);
+        let mut residual = base.multiply(&x);
+        for (dofs, values) in change.dofs.iter().zip(&change.values) {
+            for i in 0..2 {
+                for j in 0..2 {
+                    residual[dofs[i]] += values[i * 2 + j] * x[dofs[j]];
+                }
+            }
+        }
+        let scale = r.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for dof in 1..n {
+            assert!(
+                (residual[dof] - r[dof]).abs() < 1e-10 * scale,
+                "component {dof}: {} against {}",
+                residual[dof],
+                r[dof]
+            );
         }
     }
 
