@@ -452,11 +452,14 @@ fn run_probes(
     // Slabs of their own are pressed one after the other, as the needles'
     // are: each factor is the largest thing in memory (some 10 GB for the
     // fine paper default's probes), and two beside the campaign's slab
-    // took more than this machine's 23 GB.
-    let own_slabs = scenario
-        .probes
-        .iter()
-        .any(|probe| probe_scenario(scenario, probe).is_some());
+    // took more than this machine's 23 GB. Rounded probes' plane meshes
+    // of their own are far smaller (`material-nonlinearity.ron` peaks at
+    // 1.3 GB on one thread), and two fit.
+    let own_slabs = scenario.effects.out_of_plane.is_some()
+        && scenario
+            .probes
+            .iter()
+            .any(|probe| probe_scenario(scenario, probe).is_some());
     if own_slabs {
         scenario.probes.iter().map(press_one).collect()
     } else {

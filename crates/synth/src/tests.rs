@@ -1125,7 +1125,7 @@ fn a_probe_pressed_on_its_own_copy_of_the_slab_is_the_shared_slab_s() {
 }
 
 #[test]
-fn only_a_linear_slab_presses_its_probes_on_slabs_of_their_own() {
+fn only_a_linear_slab_presses_its_flat_probes_on_slabs_of_their_own() {
     use crate::probe_mesh::probe_scenario;
     let own = Some(SlabGrading {
         probe_edges: 3,
@@ -1178,9 +1178,11 @@ mod rounded_probe {
     use crate::effect::MaterialNonlinearity;
 
     /// One probe at the middle of the front face, 4 mm wide with 0.5 mm
-    /// edges, pressed 0.5 mm into a coarse neo-Hookean plane phantom.
+    /// edges, pressed 0.5 mm into a coarse neo-Hookean plane phantom, the
+    /// campaign's only trial on the mesh (`probe_mesh::pressed_apart`).
     fn scenario() -> Scenario {
         let mut s = Scenario::quick();
+        s.needles.velocities.clear();
         s.phantom.markers = (6, 6);
         s.resolution.refinement = 1;
         s.resolution.indentation_step = 0.000125;
@@ -1192,6 +1194,37 @@ mod rounded_probe {
         probe.indentation = 0.0005;
         probe.edge_radius = Some(0.0005);
         s.probes = vec![probe];
+        s
+    }
+
+    #[test]
+    fn a_rounded_probe_is_pressed_on_a_mesh_of_its_own_and_a_flat_one_is_not() {
+        use crate::probe_mesh::probe_scenario;
+        let alone = scenario();
+        let rounded = alone.probes[0];
+        assert!(probe_scenario(&alone, &rounded).is_none());
+        let mut flat = rounded;
+        flat.x = alone.phantom.width / 4.0;
+        flat.edge_radius = None;
+        let mut campaign = alone.clone();
+        campaign.probes.push(flat);
+        campaign.needles.velocities = vec![0.003];
+        let own = probe_scenario(&campaign, &rounded).unwrap();
+        assert_eq!(own, alone_but_compression(&alone));
+        assert!(probe_scenario(&campaign, &flat).is_none());
+        // The campaign's mesh leaves the rounded probe's lines out, and its
+        // own mesh is the probe's alone.
+        let nodes = |s: &Scenario| World::new(s).unwrap().body.nodes.len();
+        let mut without = campaign.clone();
+        without.probes.remove(0);
+        assert_eq!(nodes(&campaign), nodes(&without));
+        assert_eq!(nodes(&own), nodes(&alone));
+    }
+
+    fn alone_but_compression(s: &Scenario) -> Scenario {
+        let mut s = s.clone();
+        s.compression = None;
+        s.frames = None;
         s
     }
 

@@ -15,6 +15,7 @@ use needle_fem::material::Materials;
 use crate::body::{Body, Location};
 use crate::effect::material_nonlinearity::NeoHookean;
 use crate::error::SynthError;
+use crate::probe_mesh::pressed_apart;
 use crate::scenario::{ProbeTrial, Scenario};
 use crate::slab_mesh::{MaterialPaths, Span};
 use crate::system::{Factorised, Stiffness};
@@ -67,7 +68,9 @@ fn edge_lines(probe: &ProbeTrial) -> Vec<f64> {
 impl<'s> World<'s> {
     /// Meshes the phantom with grid lines on the needle lines, the probe
     /// centres and edges and the layer boundaries (graded towards the
-    /// probe edges in plane strain), and sets up its supports. A slab is
+    /// probe edges in plane strain), and sets up its supports. Rounded
+    /// probes pressed on meshes of their own (`probe_mesh::pressed_apart`)
+    /// add no lines. A slab is
     /// solved as its upper half unless the platform's foundation under its
     /// bottom face breaks the symmetry.
     pub fn new(scenario: &'s Scenario) -> Result<Self, SynthError> {
@@ -101,9 +104,14 @@ impl<'s> World<'s> {
         paths: Option<&MaterialPaths>,
     ) -> Result<Self, SynthError> {
         let p = &scenario.phantom;
-        let edges: Vec<f64> = scenario.probes.iter().flat_map(edge_lines).collect();
+        let probes: Vec<&ProbeTrial> = scenario
+            .probes
+            .iter()
+            .filter(|probe| !pressed_apart(scenario, probe))
+            .collect();
+        let edges: Vec<f64> = probes.iter().flat_map(|probe| edge_lines(probe)).collect();
         let mut x_lines: Vec<f64> = scenario.needles.plan().iter().map(|n| n.line).collect();
-        x_lines.extend(scenario.probes.iter().map(|probe| probe.x));
+        x_lines.extend(probes.iter().map(|probe| probe.x));
         x_lines.extend(&edges);
         let layers = scenario.effects.layered_stiffness.clone();
         let y_lines = layers
