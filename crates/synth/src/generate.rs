@@ -453,8 +453,8 @@ fn run_probes(
     // are: each factor is the largest thing in memory (some 10 GB for the
     // fine paper default's probes), and two beside the campaign's slab
     // took more than this machine's 23 GB. Rounded probes' plane meshes
-    // of their own are far smaller (`material-nonlinearity.ron` peaks at
-    // 1.3 GB on one thread), and two fit.
+    // of their own are far smaller (`material-nonlinearity.ron` with its
+    // probes rounded peaked at 1.3 GB on one thread), and two fit.
     let own_slabs = scenario.effects.out_of_plane.is_some()
         && scenario
             .probes

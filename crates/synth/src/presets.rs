@@ -23,16 +23,6 @@ use crate::scenario::{
 /// refinement.
 pub(crate) const PLANE_REFINEMENT: usize = 6;
 
-/// Edge radius of the `material_nonlinearity` scenario's probes (m). A
-/// flat punch's sharp corners make the neo-Hookean strain singular beside
-/// them, and its truth then differed by 11.6 um (1.5 of the marker noise)
-/// from a mesh twice as fine at 4 mm deep; rounded to 1 mm and pressed in
-/// frictionless contact (`contact`) in steps of a quarter of the radius,
-/// the two meshes differ by 1.43 um, 0.18 of the noise
-/// (`docs/truth-world.md`, The neo-Hookean truth's mesh). Sharper edges
-/// stall the contact's depth steps past 2 mm.
-pub(crate) const NEO_HOOKEAN_EDGE_RADIUS: f64 = 0.001;
-
 /// The paper default's slab: four layers, three levels towards the faces
 /// and sides and one towards each needle line. Against the convergence
 /// test's reference its final markers of a 1 mm/s insertion are 4.5 um
@@ -311,9 +301,9 @@ impl Scenario {
 
     /// The null campaign with one effect switched on, at the value used in
     /// `fixtures/scenarios/<id>.ron` (plane strain, except `out_of_plane`
-    /// itself). `material_nonlinearity` also pushes the probes 4 mm deep,
-    /// with rounded edges (`NEO_HOOKEAN_EDGE_RADIUS`), and triples the
-    /// shaft density, so that strains leave the linear range.
+    /// itself). `material_nonlinearity` also pushes the probes 4 mm deep
+    /// and triples the shaft density, so that strains leave the linear
+    /// range.
     pub fn effect_alone(effect: EffectId) -> Self {
         let mut s = Self::null();
         s.name = effect.as_str().replace('_', "-");
@@ -324,9 +314,7 @@ impl Scenario {
         if effect == EffectId::MaterialNonlinearity {
             for probe in &mut s.probes {
                 probe.indentation = 0.004;
-                probe.edge_radius = Some(NEO_HOOKEAN_EDGE_RADIUS);
             }
-            s.resolution.indentation_step = NEO_HOOKEAN_EDGE_RADIUS / 4.0;
             s.shaft.density *= 3.0;
         }
         s

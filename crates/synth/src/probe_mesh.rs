@@ -23,12 +23,11 @@
 //! that probe alone. Its mesh is graded over twice its width, lines a
 //! quarter of its edge radius apart (`world::edge_lines`), and those
 //! lines cross the whole phantom: on the one mesh of all four probes and
-//! the needle lines of `material-nonlinearity.ron`, none of its probes
-//! had finished after an hour of CPU, where the first alone solves in 18
-//! minutes (session 49). The scenario's mesh leaves such probes' lines
-//! out, so the needles do not pay for them either, and the probe's own
-//! mesh is the one the convergence test measures
-//! (`tests/convergence.rs`).
+//! the needle lines of `material-nonlinearity.ron` with its probes
+//! rounded to 1 mm, none of them had finished after an hour of CPU,
+//! where the first alone solves in 18 minutes (session 49). The
+//! scenario's mesh leaves such probes' lines out, so the needles do not
+//! pay for them either.
 //!
 //! Since the edges are singular uniformly through the thickness, the fine
 //! paper default refines that slab in the plan alone
