@@ -1210,7 +1210,7 @@ mod rounded_probe {
         campaign.probes.push(flat);
         campaign.needles.velocities = vec![0.003];
         let own = probe_scenario(&campaign, &rounded).unwrap();
-        assert_eq!(own, alone_but_compression(&alone));
+        assert_eq!(own, without_compression_or_frames(&alone));
         assert!(probe_scenario(&campaign, &flat).is_none());
         // The campaign's mesh leaves the rounded probe's lines out, and its
         // own mesh is the probe's alone.
@@ -1221,7 +1221,7 @@ mod rounded_probe {
         assert_eq!(nodes(&own), nodes(&alone));
     }
 
-    fn alone_but_compression(s: &Scenario) -> Scenario {
+    fn without_compression_or_frames(s: &Scenario) -> Scenario {
         let mut s = s.clone();
         s.compression = None;
         s.frames = None;

@@ -70,9 +70,8 @@ impl<'s> World<'s> {
     /// centres and edges and the layer boundaries (graded towards the
     /// probe edges in plane strain), and sets up its supports. Rounded
     /// probes pressed on meshes of their own (`probe_mesh::pressed_apart`)
-    /// add no lines. A slab is
-    /// solved as its upper half unless the platform's foundation under its
-    /// bottom face breaks the symmetry.
+    /// add no lines. A slab is solved as its upper half unless the
+    /// platform's foundation under its bottom face breaks the symmetry.
     pub fn new(scenario: &'s Scenario) -> Result<Self, SynthError> {
         Self::covering(scenario, Self::span(scenario))
     }
