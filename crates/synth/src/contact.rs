@@ -410,16 +410,20 @@ impl Contact {
         changed
     }
 
-    /// The force the probe applies along +y and its moment about z at the
-    /// centre of its face, from the contact forces at `u` (per copy of the
-    /// body).
-    pub fn resultant(&self, nodes: &[[f64; 3]], dim: usize, u: &[f64]) -> (f64, f64) {
-        let (mut force, mut moment) = (0.0, 0.0);
+    /// The force the probe applies, `[along +x, along +y]`, and its moment
+    /// about z at the centre of its face, from the contact forces at `u`
+    /// (per copy of the body). The x part comes from the rounded edges and
+    /// sides: where the face slides under the probe, the edge it slides
+    /// towards pushes it back, a force a flat frictionless punch cannot
+    /// make.
+    pub fn resultant(&self, nodes: &[[f64; 3]], dim: usize, u: &[f64]) -> ([f64; 2], f64) {
+        let (mut force, mut moment) = ([0.0; 2], 0.0);
         for k in 0..self.nodes.len() {
             let p = self.position(k, nodes, dim, u);
             let (t, at) = self.pressure(k, p);
             let applied = [-t * at.gradient[0], -t * at.gradient[1]];
-            force += applied[1];
+            force[0] += applied[0];
+            force[1] += applied[1];
             moment +=
                 (p[0] - self.punch.centre) * applied[1] - (p[1] - self.punch.depth) * applied[0];
         }
@@ -524,10 +528,11 @@ mod tests {
         assert!((f[3] + 3e4 * 0.0001 * c).abs() < 1e-12);
         assert!((f[4] + 3e4 * 0.0001 * c).abs() < 1e-12);
         assert_eq!(&f[6..], &[0.0; 3]);
-        // The resultant is the pushes' sum, along +y, and their moment
-        // about the face's centre.
+        // The resultant is the pushes' sum, the edge's push sideways too,
+        // and their moment about the face's centre.
         let (force, moment) = contact.resultant(&nodes, dim, &u);
-        assert!((force - (6.0 + 3.0 * c)).abs() < 1e-12, "{force}");
+        assert!((force[0] - 3.0 * c).abs() < 1e-12, "{force:?}");
+        assert!((force[1] - (6.0 + 3.0 * c)).abs() < 1e-12, "{force:?}");
         let arms = [
             (0.0302 - 0.03, 0.0007 - 0.001),
             (edge[0] - 0.03, edge[1] - 0.001),

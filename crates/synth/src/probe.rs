@@ -21,6 +21,12 @@
 //! with the face held, and one solve gives $u$. The nonlinear truth holds
 //! the face in its Newton solver on a grid of indentations, interpolated
 //! between them.
+//!
+//! A probe with rounded edges (`ProbeTrial::edge_radius`, neo-Hookean
+//! truth only) touches the front face in frictionless contact
+//! (`contact`). Where the face slides under it, its edges push the face
+//! back, so its force has a part along x too, which the force sensor
+//! reads: the bundle's `fx`, zero (plus noise) for a flat punch.
 
 use nalgebra::{DMatrix, DVector};
 
@@ -42,6 +48,9 @@ pub(crate) struct ProbeRun {
     pub markers: Vec<Vec<[f64; 3]>>,
     /// Probe force along +y (N).
     pub force: Vec<f64>,
+    /// Probe force along +x (N): zero for a flat frictionless punch, made
+    /// by the rounded edges of one in contact.
+    pub sideways: Vec<f64>,
     /// Moment about z at the probe centre (N m).
     pub moment: Vec<f64>,
     /// Displacement field at full indentation, on the mesh the probe was
@@ -81,6 +90,7 @@ pub(crate) fn press(
         indentations: vec![0.0],
         markers: vec![vec![[0.0; 3]; world.markers.len()]],
         force: vec![0.0],
+        sideways: vec![0.0],
         moment: vec![0.0],
         last_displacement: vec![0.0; dofs],
         peak_strain: 0.0,
@@ -100,6 +110,7 @@ pub(crate) fn press(
         run.indentations.push(delta);
         run.markers.push(world.marker_displacements(&u));
         run.force.push(force);
+        run.sideways.push(0.0);
         run.moment.push(moment);
         run.last_displacement = u;
     };
@@ -178,7 +189,8 @@ pub(crate) fn press(
             let (force, moment) = contact.resultant(&body.nodes, body.dim, &u);
             run.indentations.push(delta);
             run.markers.push(world.marker_displacements(&u));
-            run.force.push(body.copies() * force);
+            run.force.push(body.copies() * force[1]);
+            run.sideways.push(body.copies() * force[0]);
             run.moment.push(body.copies() * moment);
             run.last_displacement = u.clone();
         }

@@ -186,7 +186,7 @@ fn probe_trial(
             tip_x: probe.x,
             tip_y: indentation(t),
             theta: 0.0,
-            fx: instruments.force(0.0),
+            fx: instruments.force(at.apply(&run.sideways)),
             fy: instruments.force(at.apply(&run.force)),
             mz: at.apply(&run.moment),
         });

@@ -1221,6 +1221,35 @@ mod rounded_probe {
         assert_eq!(nodes(&own), nodes(&alone));
     }
 
+    #[test]
+    fn the_force_sensor_reads_a_rounded_probe_s_sideways_push() {
+        let mut s = scenario();
+        s.probes[0].x = 0.005;
+        s.compression = None;
+        s.frames = None;
+        s.sensors.force_sigma = 0.0;
+        s.sensors.force_resolution = 0.0;
+        let world = World::new(&s).unwrap();
+        let run = press(&world, &s.probes[0], Factorisation::Shared).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let bundle = dir.path().join("bundle");
+        crate::generate(&s, &bundle, &dir.path().join("truth.ron"), |_| {}).unwrap();
+        let campaign = needle_data::read_bundle(&bundle).unwrap().campaign;
+        let last = *campaign.trials[0].tool.last().unwrap();
+        let [sideways, force] = [&run.sideways, &run.force].map(|f| *f.last().unwrap());
+        assert!(sideways.abs() > 1e-3 * force, "{sideways} N sideways");
+        assert!(
+            (last.fx - sideways).abs() < 1e-12,
+            "{} against {sideways}",
+            last.fx
+        );
+        assert!(
+            (last.fy - force).abs() < 1e-12,
+            "{} against {force}",
+            last.fy
+        );
+    }
+
     fn without_compression_or_frames(s: &Scenario) -> Scenario {
         let mut s = s.clone();
         s.compression = None;
@@ -1230,14 +1259,19 @@ mod rounded_probe {
 
     #[test]
     fn a_rounded_probe_is_balanced_by_the_supports_and_nothing_passes_into_it() {
-        let s = scenario();
+        // Off the middle, so that the face slides under the probe and its
+        // edges push sideways.
+        let mut s = scenario();
+        s.probes[0].x = 0.005;
         let world = World::new(&s).unwrap();
         let body = &world.body;
         let probe = s.probes[0];
         let run = press(&world, &probe, Factorisation::Shared).unwrap();
         let u = &run.last_displacement;
         let force = *run.force.last().unwrap() / body.copies();
+        let sideways = *run.sideways.last().unwrap() / body.copies();
         assert!(force > 0.0, "{force}");
+        assert!(sideways.abs() > 1e-3 * force, "{sideways} N sideways");
         // The supports' reactions are the elastic forces at the held back
         // face; the probe's forces are the contact's. Computed apart, they
         // must balance, in force and, about the probe's centre, in moment
@@ -1253,6 +1287,11 @@ mod rounded_probe {
             (along(1) + force).abs() < 1e-6 * force,
             "probe {force} N against supports {} N",
             along(1)
+        );
+        assert!(
+            (along(0) + sideways).abs() < 1e-6 * force,
+            "probe {sideways} N sideways against supports {} N",
+            along(0)
         );
         let moment: f64 = held
             .iter()
@@ -1324,7 +1363,7 @@ mod rounded_probe {
             u = solver.press(body, &u, from, &mut contact).unwrap();
             from = contact.punch.depth;
         }
-        let force = contact.resultant(&body.nodes, body.dim, &u).0;
+        let force = contact.resultant(&body.nodes, body.dim, &u).0[1];
         (world.marker_displacements(&u), force)
     }
 
