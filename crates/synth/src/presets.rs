@@ -246,11 +246,11 @@ impl Scenario {
 
     /// The paper's campaign with a smaller discretisation error in its
     /// slab: each needle trial placed on the slab of
-    /// [`PAPER_FINE_SLAB_GRADING`] first, then settled on a slab of its
-    /// own refined along its material path, [`PAPER_FINE_MARKER_GRADING`]
+    /// `PAPER_FINE_SLAB_GRADING` first, then settled on a slab of its
+    /// own refined along its material path, `PAPER_FINE_MARKER_GRADING`
     /// (`resolution.marker_grading`, `marker_mesh`), where its markers and
     /// base force are read; each probe pressed on a slab of its own graded
-    /// as [`PAPER_FINE_PROBE_GRADING`] (`resolution.probe_grading`,
+    /// as `PAPER_FINE_PROBE_GRADING` (`resolution.probe_grading`,
     /// `probe_mesh`). On the campaign's last insertion (the worst of the
     /// paper default's) six slabs each refined one way more move its
     /// markers by at most 0.69 um, 0.086 of the marker noise; on its first

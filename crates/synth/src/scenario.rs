@@ -287,7 +287,9 @@ pub struct ProbeTrial {
     /// phantom in frictionless contact, face, edges and sides (`contact`),
     /// which the truth solves for the neo-Hookean material
     /// (`material_nonlinearity`) only, in depth steps best no larger than
-    /// half the radius (`resolution.indentation_step`).
+    /// half the radius (`resolution.indentation_step`). Its edges also
+    /// push the face sideways where it slides, which the sensor reads as
+    /// `fx`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub edge_radius: Option<f64>,
 }
