@@ -221,11 +221,52 @@ mod tests {
         t
     }
 
+    /// The chain's matrix with `extra` added, dense, rows and columns of
+    /// every component (the held one included).
+    fn dense(k: &[f64], extra: &[(usize, usize, f64)]) -> Vec<Vec<f64>> {
+        let n = k.len() + 1;
+        let mut m = vec![vec![0.0; n]; n];
+        for (i, &ki) in k.iter().enumerate() {
+            m[i][i] += ki;
+            m[i + 1][i + 1] += ki;
+            m[i][i + 1] -= ki;
+            m[i + 1][i] -= ki;
+        }
+        for &(i, j, v) in extra {
+            m[i][j] += v;
+        }
+        m
+    }
+
+    /// The largest componentwise backward error of `x` as a solution of
+    /// `m x = r` over the free rows: $\max_i |(m x - r)_i| / (\sum_j
+    /// |m_{ij} x_j| + |r_i|)$, with the held components' columns left out.
+    fn backward_error(m: &[Vec<f64>], held: &[bool], x: &[f64], r: &[f64]) -> f64 {
+        let free: Vec<usize> = (0..x.len()).filter(|&j| !held[j]).collect();
+        free.iter()
+            .map(|&i| {
+                let residual: f64 = free.iter().map(|&j| m[i][j] * x[j]).sum::<f64>() - r[i];
+                let size: f64 = free.iter().map(|&j| (m[i][j] * x[j]).abs()).sum::<f64>();
+                residual.abs() / (size + r[i].abs()).max(f64::MIN_POSITIVE)
+            })
+            .fold(0.0, f64::max)
+    }
+
     proptest! {
         /// A penalty-like block added and a block removed, solved through
-        /// the update, equal the changed matrix factorised afresh.
+        /// the update, solve the changed matrix: its componentwise
+        /// backward error is small, where a wrong update's is of order
+        /// one. Not to rounding, as a fresh factorisation's is: the
+        /// update's compliances $K^{-1} E$ carry the base's conditioning
+        /// into the small system. Over 15,000 cases the update's backward
+        /// error reached 2.4e-10 and a fresh factorisation's 4.1e-16
+        /// (session 51). The solutions themselves differ by the changed
+        /// matrix's condition number times that; this test compared them
+        /// to 1e-9 until a penalty of 1e6 on springs of 1 made them differ
+        /// by 1.2e-9 with both backward errors below 5e-16 (the case kept
+        /// in `proptest-regressions/low_rank.txt`).
         #[test]
-        fn an_updated_solve_equals_a_fresh_factorisation_of_the_changed_matrix(
+        fn an_updated_solve_solves_the_changed_matrix_to_a_small_backward_error(
             k in prop::collection::vec(1.0f64..100.0, 8..16),
             (a, b) in (1usize..4, 4usize..8),
             penalty in 1.0f64..1e6,
@@ -261,10 +302,15 @@ mod tests {
             let rhs = &r[..n];
             let expected = fresh.solve(&[rhs]).pop().expect("one");
             let got = Updated::new(&factorised, &mut Compliances::default(), &change).solve(rhs);
-            let scale = expected.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-            for (g, e) in got.iter().zip(&expected) {
-                prop_assert!((g - e).abs() <= 1e-9 * scale, "{g} against {e}");
-            }
+            let m = dense(&k, &changed_entries);
+            let (updated, afresh) = (
+                backward_error(&m, &held, &got, rhs),
+                backward_error(&m, &held, &expected, rhs),
+            );
+            prop_assert!(
+                updated <= 1e-8,
+                "backward error {updated:e} through the update, {afresh:e} afresh"
+            );
         }
     }
 
