@@ -186,18 +186,30 @@ mod tests {
     use faer::sparse::Triplet;
     use proptest::prelude::*;
 
+    /// The entries of a chain of springs, stiffness `k` between
+    /// neighbours, with `extra` added.
+    fn chain_entries(k: &[f64], extra: &[(usize, usize, f64)]) -> Vec<(usize, usize, f64)> {
+        let mut t = Vec::new();
+        for (i, &ki) in k.iter().enumerate() {
+            t.extend([
+                (i, i, ki),
+                (i + 1, i + 1, ki),
+                (i, i + 1, -ki),
+                (i + 1, i, -ki),
+            ]);
+        }
+        t.extend_from_slice(extra);
+        t
+    }
+
     /// A chain of springs, fixed at component 0: stiffness `k` between
     /// neighbours.
     fn chain(k: &[f64], extra: &[(usize, usize, f64)]) -> Stiffness {
         let n = k.len() + 1;
-        let mut t = Vec::new();
-        for (i, &ki) in k.iter().enumerate() {
-            t.push(Triplet::new(i, i, ki));
-            t.push(Triplet::new(i + 1, i + 1, ki));
-            t.push(Triplet::new(i, i + 1, -ki));
-            t.push(Triplet::new(i + 1, i, -ki));
-        }
-        t.extend(extra.iter().map(|&(i, j, v)| Triplet::new(i, j, v)));
+        let t: Vec<_> = chain_entries(k, extra)
+            .into_iter()
+            .map(|(i, j, v)| Triplet::new(i, j, v))
+            .collect();
         let elastic = SparseColMat::try_new_from_triplets(n, n, &t).expect("valid triplets");
         Stiffness::new(&elastic, &[]).expect("no springs")
     }
@@ -226,13 +238,7 @@ mod tests {
     fn dense(k: &[f64], extra: &[(usize, usize, f64)]) -> Vec<Vec<f64>> {
         let n = k.len() + 1;
         let mut m = vec![vec![0.0; n]; n];
-        for (i, &ki) in k.iter().enumerate() {
-            m[i][i] += ki;
-            m[i + 1][i + 1] += ki;
-            m[i][i + 1] -= ki;
-            m[i + 1][i] -= ki;
-        }
-        for &(i, j, v) in extra {
+        for (i, j, v) in chain_entries(k, extra) {
             m[i][j] += v;
         }
         m
