@@ -589,6 +589,12 @@ fn grid_candidates(boxes: &[([f64; 3], [f64; 3])], dim: usize, slack: f64) -> Ca
 /// Inverse of a 3x3 matrix (the padded Jacobian of a straight simplex,
 /// never singular for a valid mesh).
 pub(crate) fn invert3(m: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    inverse_and_det(m).0
+}
+
+/// Inverse (row-major `inv[i][j]`) and determinant of a 3x3 matrix, by
+/// cofactors.
+pub(crate) fn inverse_and_det(m: &[[f64; 3]; 3]) -> ([[f64; 3]; 3], f64) {
     let c = |r: usize, k: usize| {
         let (r1, r2) = ((r + 1) % 3, (r + 2) % 3);
         let (k1, k2) = ((k + 1) % 3, (k + 2) % 3);
@@ -601,5 +607,5 @@ pub(crate) fn invert3(m: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
             inv[k][r] = c(r, k) / det;
         }
     }
-    inv
+    (inv, det)
 }

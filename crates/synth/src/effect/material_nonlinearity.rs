@@ -38,7 +38,7 @@ use needle_fem::element::stiffness::{ReferenceGradients, physical_gradients};
 use serde::{Deserialize, Serialize};
 
 use super::{EffectId, TruthEffect};
-use crate::body::Body;
+use crate::body::{Body, inverse_and_det};
 use crate::contact::{Contact, Curvature, PENALTY_FACTOR, Pressed, Punch};
 use crate::error::SynthError;
 use crate::low_rank::{Blocks, Compliances, Updated};
@@ -940,23 +940,6 @@ fn most_compressed_kind<const D: usize, const N: usize>(body: &Body, u: &[f64]) 
         }
     }
     (least.0, centroid)
-}
-
-/// Inverse (row-major `inv[i][j]`) and determinant of a 3x3 matrix.
-fn inverse_and_det(m: &[[f64; 3]; 3]) -> ([[f64; 3]; 3], f64) {
-    let c = |r: usize, k: usize| {
-        let (r1, r2) = ((r + 1) % 3, (r + 2) % 3);
-        let (k1, k2) = ((k + 1) % 3, (k + 2) % 3);
-        m[r1][k1] * m[r2][k2] - m[r1][k2] * m[r2][k1]
-    };
-    let det = m[0][0] * c(0, 0) + m[0][1] * c(0, 1) + m[0][2] * c(0, 2);
-    let mut inv = [[0.0; 3]; 3];
-    for r in 0..3 {
-        for k in 0..3 {
-            inv[k][r] = c(r, k) / det;
-        }
-    }
-    (inv, det)
 }
 
 #[cfg(test)]
