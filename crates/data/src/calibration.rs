@@ -14,6 +14,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use crate::error::BundleError;
+use crate::grey_png::grey_png_problem;
 use crate::layout::{CALIBRATION, CALIBRATION_TARGET};
 use crate::report::{Collector, IssueKind, Severity};
 use crate::ron_lines::field_lines;
@@ -149,6 +150,10 @@ pub(crate) fn check_calibration_target(
                 Some("images"),
                 format!("{image} is not in the calibration folder"),
             );
+            fine = false;
+        } else if let Some(problem) = grey_png_problem(&root.join(CALIBRATION).join(image)) {
+            let line = line_of_string(&text, image).or_else(|| lines.get("images").copied());
+            error(line, Some("images"), format!("{image} {problem}"));
             fine = false;
         }
     }

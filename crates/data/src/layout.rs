@@ -59,6 +59,10 @@ pub(crate) fn parse_frame_file_name(name: &str) -> Option<u64> {
     }
 }
 
+/// The longest file name, in bytes, of the common file systems (ext4,
+/// APFS, NTFS in UTF-16 units, which is no shorter).
+const LONGEST_FOLDER_NAME: usize = 255;
+
 /// Why a trial id cannot name a folder, if it cannot.
 pub(crate) fn trial_id_problem(id: &str) -> Option<&'static str> {
     if id.is_empty() {
@@ -69,6 +73,8 @@ pub(crate) fn trial_id_problem(id: &str) -> Option<&'static str> {
         Some("starts with a dot (a hidden or relative folder)")
     } else if id.trim() != id {
         Some("starts or ends with white space")
+    } else if id.len() > LONGEST_FOLDER_NAME {
+        Some("is longer than the 255 bytes a folder name can have")
     } else {
         None
     }

@@ -17,8 +17,8 @@
 //! It depends on no other crate of the project.
 //!
 //! It does not decode images (frames are listed, sorted, and copied as
-//! files; the vision crate decodes them), interpret the measurements, or
-//! write into a bundle it reads.
+//! files, and only their PNG headers are checked; the vision crate decodes
+//! them), interpret the measurements, or write into a bundle it reads.
 //!
 //! # Error model
 //!
@@ -32,8 +32,10 @@
 //!   `markers_rest.csv` or defined twice, time or frame numbers going
 //!   backwards, the same marker twice in a frame, trial folders the manifest
 //!   does not list (or listed trials without a folder), duplicate trial ids,
-//!   unknown, missing or duplicate manifest fields, an unsupported format
-//!   version, non-physical values (a phantom size `<= 0`, a negative speed,
+//!   files the format names that exist but cannot be read (a folder, a link
+//!   to nothing or a pipe where a file belongs), frames that are not PNGs of
+//!   8- or 16-bit grey, unknown, missing or duplicate manifest fields, an
+//!   unsupported format version, non-physical values (a phantom size `<= 0`, a negative speed,
 //!   day or standard deviation). [`read_bundle`] then returns
 //!   [`BundleError::Invalid`] carrying the full [`ValidationReport`].
 //! - **Warnings** flag what is legal but suspicious, chiefly magnitudes that
@@ -91,7 +93,9 @@
 mod calibration;
 mod campaign;
 mod error;
+mod grey_png;
 pub mod layout;
+mod line_breaks;
 mod parse_manifest;
 mod parse_table;
 mod read;

@@ -12,7 +12,7 @@ use std::path::Path;
 use serde::Deserialize;
 
 use crate::layout::trial_id_problem;
-use crate::report::{Collector, IssueKind, Severity};
+use crate::report::{Collector, IssueKind, Severity, Shown};
 use crate::ron_lines::field_lines;
 use crate::types::{Bundle, FORMAT_VERSION};
 
@@ -158,7 +158,7 @@ fn check_values(
                 file,
                 line,
                 Some(path),
-                format!("{what} is {value}, not a finite number"),
+                format!("{what} is {}, not a finite number", Shown(value)),
             );
         } else if minimum.violated_by(value) {
             issues.add(
@@ -167,7 +167,11 @@ fn check_values(
                 file,
                 line,
                 Some(path),
-                format!("{what} is {value}; it must be {}", minimum.describe()),
+                format!(
+                    "{what} is {}; it must be {}",
+                    Shown(value),
+                    minimum.describe()
+                ),
             );
         }
         value.is_finite()
@@ -195,7 +199,8 @@ fn check_values(
                 line_of(&path),
                 Some(&path),
                 format!(
-                    "phantom {name} is {value} m; is it in millimetres? (SI units are expected)"
+                    "phantom {name} is {} m; is it in millimetres? (SI units are expected)",
+                    Shown(value)
                 ),
             );
         }

@@ -9,11 +9,12 @@ use std::path::Path;
 
 use csv::{ByteRecord, Reader, ReaderBuilder};
 
-use crate::report::{Collector, IssueKind, Severity};
+use crate::line_breaks::LineBreaks;
+use crate::report::{Collector, IssueKind, Quoted, Severity};
 
 /// An open table whose header has been checked.
 pub(crate) struct Table<'a> {
-    reader: Reader<File>,
+    reader: Reader<LineBreaks<File>>,
     record: ByteRecord,
     /// The file, relative to the bundle root (for issues).
     pub(crate) file: &'a Path,
@@ -57,11 +58,17 @@ impl<'a> Table<'a> {
             .has_headers(false)
             .flexible(true)
             .buffer_capacity(1 << 16)
-            .from_reader(handle);
+            .from_reader(LineBreaks::new(handle));
         let mut record = ByteRecord::new();
         let expected = header.required.join(",");
         let with_optional = [header.required, header.optional].concat().join(",");
-        let found = match reader.read_byte_record(&mut record) {
+        let read = reader.read_byte_record(&mut record);
+        // Blank lines before the header are legal; its line is not always 1.
+        let header_line = match (&read, record.position()) {
+            (Ok(true), Some(at)) => reader.get_mut().line_of(at.byte()),
+            _ => 1,
+        };
+        let found = match read {
             Ok(true) => record
                 .iter()
                 .enumerate()
@@ -87,11 +94,12 @@ impl<'a> Table<'a> {
                 return None;
             }
             Err(err) => {
+                let line = err.position().map(|at| reader.get_mut().line_of(at.byte()));
                 issues.add(
                     Severity::Error,
                     IssueKind::Io,
                     file,
-                    Some(1),
+                    line,
                     None,
                     format!("cannot read the header: {err}"),
                 );
@@ -117,7 +125,7 @@ impl<'a> Table<'a> {
                 Severity::Error,
                 IssueKind::BadHeader,
                 file,
-                Some(1),
+                Some(header_line),
                 None,
                 format!(
                     "the header is `{}`; the format prescribes {alternatives}",
@@ -150,7 +158,9 @@ impl<'a> Table<'a> {
                 Ok(true) => {}
                 Ok(false) => return None,
                 Err(err) => {
-                    let line = err.position().map(|p| p.line());
+                    let line = err
+                        .position()
+                        .map(|at| self.reader.get_mut().line_of(at.byte()));
                     issues.add(
                         Severity::Error,
                         IssueKind::Io,
@@ -162,7 +172,8 @@ impl<'a> Table<'a> {
                     return None;
                 }
             }
-            let line = self.record.position().map_or(0, |p| p.line());
+            let start = self.record.position().map_or(0, |at| at.byte());
+            let line = self.reader.get_mut().line_of(start);
             if self.record.len() == self.columns.len() {
                 return Some(Row {
                     record: &self.record,
@@ -226,7 +237,7 @@ impl Row<'_> {
                     issues,
                     IssueKind::NonFinite,
                     column,
-                    format!("`{text}` is {value}, not a finite number"),
+                    format!("`{}` is {value}, not a finite number", Quoted(text)),
                 );
                 None
             }
@@ -235,7 +246,7 @@ impl Row<'_> {
                     issues,
                     IssueKind::BadNumber,
                     column,
-                    format!("`{text}` is not a number"),
+                    format!("`{}` is not a number", Quoted(text)),
                 );
                 None
             }
@@ -260,7 +271,8 @@ impl Row<'_> {
                 IssueKind::BadNumber,
                 column,
                 format!(
-                    "`{text}` is not a non-negative integer of at most {} bits",
+                    "`{}` is not a non-negative integer of at most {} bits",
+                    Quoted(text),
                     8 * size_of::<T>()
                 ),
             );

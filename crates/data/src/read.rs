@@ -2,6 +2,7 @@
 //! hand out the data only when there is no error.
 
 use std::collections::BTreeSet;
+use std::ffi::OsString;
 use std::fs;
 use std::io::ErrorKind;
 use std::path::{Path, PathBuf};
@@ -9,6 +10,7 @@ use std::path::{Path, PathBuf};
 use crate::calibration::check_calibration_target;
 use crate::campaign::{Campaign, FrameFile, LoadedBundle, MarkerSet, MarkerTrack, TrialData};
 use crate::error::BundleError;
+use crate::grey_png::grey_png_problem;
 use crate::layout::{
     CALIBRATION, COMPRESSION, FRAMES, MANIFEST, MARKERS, MARKERS_REST, TOOL, TRIALS,
     parse_frame_file_name, trial_id_problem,
@@ -84,21 +86,25 @@ fn load(root: &Path) -> (Option<Campaign>, ValidationReport) {
     let extent = manifest.as_ref().and_then(|b| Extent::of(&b.phantom));
 
     let rest_file = Path::new(MARKERS_REST);
-    let rest = if root.join(rest_file).is_file() {
-        read_markers_rest(&root.join(rest_file), rest_file, extent, &mut issues)
-    } else {
-        missing(rest_file, "the markers at rest are required", &mut issues);
-        None
+    let rest = match Entry::at(&root.join(rest_file)) {
+        Entry::File => read_markers_rest(&root.join(rest_file), rest_file, extent, &mut issues),
+        Entry::Missing => {
+            missing(rest_file, "the markers at rest are required", &mut issues);
+            None
+        }
+        unreadable => unreadable.report_not_a_file(rest_file, &mut issues),
     };
 
     let trials = read_trials(root, manifest.as_ref(), rest.as_ref(), extent, &mut issues);
 
     let compression_file = Path::new(COMPRESSION);
-    let compression = root
-        .join(compression_file)
-        .is_file()
-        .then(|| read_compression(&root.join(compression_file), compression_file, &mut issues))
-        .flatten();
+    let compression = match Entry::at(&root.join(compression_file)) {
+        Entry::File => {
+            read_compression(&root.join(compression_file), compression_file, &mut issues)
+        }
+        Entry::Missing => None,
+        unreadable => unreadable.report_not_a_file(compression_file, &mut issues),
+    };
 
     let calibration = root.join(CALIBRATION);
     let calibration_dir = if calibration.is_dir() {
@@ -131,6 +137,55 @@ fn load(root: &Path) -> (Option<Campaign>, ValidationReport) {
         _ => None,
     };
     (campaign, issues.finish(root))
+}
+
+/// What is at a path the format names.
+#[derive(Debug)]
+enum Entry {
+    Missing,
+    File,
+    Folder,
+    /// Something that exists but is neither: a dangling link, a pipe, a
+    /// device, or what could not be examined; why.
+    Other(String),
+}
+
+impl Entry {
+    fn at(path: &Path) -> Self {
+        match fs::metadata(path) {
+            Ok(meta) if meta.is_file() => Self::File,
+            Ok(meta) if meta.is_dir() => Self::Folder,
+            Ok(_) => Self::Other("is not a regular file (a pipe, socket or device)".to_owned()),
+            Err(err) if err.kind() == ErrorKind::NotFound => {
+                if fs::symlink_metadata(path).is_ok() {
+                    Self::Other("is a symbolic link to nothing".to_owned())
+                } else {
+                    Self::Missing
+                }
+            }
+            Err(err) => Self::Other(format!("cannot be examined: {err}")),
+        }
+    }
+
+    /// Reports a file the format names that exists but cannot be read as
+    /// one (reading a pipe could block for ever, so it is not tried); its
+    /// data are not there, so it is an error, never a silent skip.
+    fn report_not_a_file<T>(self, file: &Path, issues: &mut Collector) -> Option<T> {
+        let why = match self {
+            Self::Folder => "is a folder, not a file".to_owned(),
+            Self::Other(why) => why,
+            Self::Missing | Self::File => unreachable!("only entries that are not files"),
+        };
+        issues.add(
+            Severity::Error,
+            IssueKind::Io,
+            file,
+            None,
+            None,
+            format!("exists but cannot be read: it {why}"),
+        );
+        None
+    }
 }
 
 fn missing(file: &Path, why: &str, issues: &mut Collector) {
@@ -206,6 +261,8 @@ fn read_trials(
 ) -> Vec<TrialData> {
     let trials_dir = root.join(TRIALS);
     let mut on_disk = BTreeSet::new();
+    // Folders whose names are not UTF-8: no manifest id can list them.
+    let mut not_text: Vec<OsString> = Vec::new();
     match fs::read_dir(&trials_dir) {
         Ok(entries) => {
             for entry in entries {
@@ -228,7 +285,13 @@ fn read_trials(
                     continue;
                 }
                 if entry.path().is_dir() {
-                    on_disk.insert(name);
+                    match entry.file_name().into_string() {
+                        Ok(name) => on_disk.insert(name),
+                        Err(raw) => {
+                            not_text.push(raw);
+                            true
+                        }
+                    };
                 } else {
                     issues.add(
                         Severity::Warning,
@@ -252,9 +315,26 @@ fn read_trials(
         ),
     }
 
+    not_text.sort();
+    for raw in &not_text {
+        let relative = Path::new(TRIALS).join(raw);
+        issues.add(
+            Severity::Error,
+            IssueKind::UnlistedTrialFolder,
+            &relative,
+            None,
+            None,
+            "trial folder's name is not UTF-8 text, so bundle.ron cannot list it".to_owned(),
+        );
+        read_trial(&trials_dir.join(raw), &relative, rest, extent, issues);
+    }
+    let read_named = |name: &str, issues: &mut Collector| {
+        let dir = crate::layout::trial_dir(root, name);
+        read_trial(&dir, &Path::new(TRIALS).join(name), rest, extent, issues)
+    };
     let Some(manifest) = manifest else {
         for name in &on_disk {
-            read_trial(root, name, rest, extent, issues);
+            read_named(name, issues);
         }
         return Vec::new();
     };
@@ -268,7 +348,7 @@ fn read_trials(
             None,
             format!("trial folder {name:?} is not listed in bundle.ron"),
         );
-        read_trial(root, name, rest, extent, issues);
+        read_named(name, issues);
     }
     let mut trials = Vec::with_capacity(manifest.trials.len());
     let mut read_ids = BTreeSet::new();
@@ -292,7 +372,7 @@ fn read_trials(
             );
             continue;
         }
-        let (tool, markers, frames) = read_trial(root, &trial.id, rest, extent, issues);
+        let (tool, markers, frames) = read_named(&trial.id, issues);
         trials.push(TrialData {
             trial: trial.clone(),
             tool,
@@ -303,38 +383,50 @@ fn read_trials(
     trials
 }
 
-/// Reads one trial folder.
+/// Reads the trial folder `dir`, `relative` to the bundle root.
 fn read_trial(
-    root: &Path,
-    id: &str,
+    dir: &Path,
+    relative: &Path,
     rest: Option<&MarkerSet>,
     extent: Option<Extent>,
     issues: &mut Collector,
 ) -> (Vec<crate::ToolSample>, Option<MarkerTrack>, Vec<FrameFile>) {
-    let dir = crate::layout::trial_dir(root, id);
-    let relative = Path::new(TRIALS).join(id);
-    check_entries(&dir, &relative, &[TOOL, MARKERS, FRAMES], issues);
+    check_entries(dir, relative, &[TOOL, MARKERS, FRAMES], issues);
 
     let tool_file = relative.join(TOOL);
-    let tool = if dir.join(TOOL).is_file() {
-        read_tool(&dir.join(TOOL), &tool_file, extent, issues).unwrap_or_default()
-    } else {
-        missing(&tool_file, "every trial has its tool samples", issues);
-        Vec::new()
+    let tool = match Entry::at(&dir.join(TOOL)) {
+        Entry::File => read_tool(&dir.join(TOOL), &tool_file, extent, issues).unwrap_or_default(),
+        Entry::Missing => {
+            missing(&tool_file, "every trial has its tool samples", issues);
+            Vec::new()
+        }
+        unreadable => unreadable
+            .report_not_a_file(&tool_file, issues)
+            .unwrap_or_default(),
     };
 
     let markers_file = relative.join(MARKERS);
-    let markers = dir
-        .join(MARKERS)
-        .is_file()
-        .then(|| read_markers(&dir.join(MARKERS), &markers_file, rest, extent, issues))
-        .flatten();
+    let markers = match Entry::at(&dir.join(MARKERS)) {
+        Entry::File => read_markers(&dir.join(MARKERS), &markers_file, rest, extent, issues),
+        Entry::Missing => None,
+        unreadable => unreadable.report_not_a_file(&markers_file, issues),
+    };
 
     let frames_dir = dir.join(FRAMES);
-    let frames = if frames_dir.is_dir() {
-        list_frames(&frames_dir, &relative.join(FRAMES), issues)
-    } else {
-        Vec::new()
+    let frames = match Entry::at(&frames_dir) {
+        Entry::Folder => list_frames(&frames_dir, &relative.join(FRAMES), issues),
+        Entry::Missing => Vec::new(),
+        _ => {
+            issues.add(
+                Severity::Warning,
+                IssueKind::Suspicious,
+                &relative.join(FRAMES),
+                None,
+                None,
+                "frames is not a folder; ignored".to_owned(),
+            );
+            Vec::new()
+        }
     };
     (tool, markers, frames)
 }
@@ -360,10 +452,24 @@ fn list_frames(dir: &Path, relative: &Path, issues: &mut Collector) -> Vec<Frame
     for entry in entries.filter_map(Result::ok) {
         let name = entry.file_name().to_string_lossy().into_owned();
         match parse_frame_file_name(&name) {
-            Some(number) if entry.path().is_file() => frames.push(FrameFile {
-                number,
-                path: entry.path(),
-            }),
+            Some(number) if entry.path().is_file() => {
+                // Named by the folder so that a thousand bad frames are
+                // listed up to the cap, then counted.
+                if let Some(problem) = grey_png_problem(&entry.path()) {
+                    issues.add(
+                        Severity::Error,
+                        IssueKind::BadFrame,
+                        relative,
+                        None,
+                        None,
+                        format!("{name} {problem}"),
+                    );
+                }
+                frames.push(FrameFile {
+                    number,
+                    path: entry.path(),
+                });
+            }
             _ if name.starts_with('.') => {}
             _ => strays.push(name),
         }

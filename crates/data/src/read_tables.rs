@@ -14,7 +14,7 @@ use crate::layout::{
     COMPRESSION_HEADER, MARKERS_HEADER, MARKERS_REST_HEADER, MARKERS_SIGMA_COLUMNS, TOOL_HEADER,
 };
 use crate::parse_table::{Header, Table};
-use crate::report::{Collector, IssueKind, Severity};
+use crate::report::{Collector, IssueKind, Severity, Shown};
 use crate::types::{CompressionPoint, MarkerRest, Phantom, ToolSample};
 
 /// Coordinates more than this many phantom sizes from the origin look like
@@ -56,7 +56,7 @@ impl Extent {
         value.abs() > MILLIMETRE_FACTOR * self.size()
     }
 
-    fn millimetre_warning(self, worst: f64) -> String {
+    fn millimetre_warning(self, worst: Shown) -> String {
         format!(
             "coordinates up to {worst} on a {} m x {} m phantom; are they in millimetres? (SI units are expected)",
             self.width, self.depth
@@ -90,7 +90,7 @@ impl Tally {
         kind: IssueKind,
         file: &Path,
         field: &str,
-        message: impl FnOnce(f64) -> String,
+        message: impl FnOnce(Shown) -> String,
     ) {
         if self.count > 0 {
             issues.add(
@@ -101,7 +101,7 @@ impl Tally {
                 Some(field),
                 format!(
                     "{} ({} row{}, first at this line)",
-                    message(self.worst),
+                    message(Shown(self.worst)),
                     self.count,
                     if self.count == 1 { "" } else { "s" }
                 ),
@@ -288,20 +288,8 @@ pub(crate) fn read_tool(
     degrees.warn(issues, IssueKind::Units, file, "theta", |w| {
         format!("angles up to {w} exceed a full turn; are they in degrees? (radians are expected)")
     });
-    if let (Some(first), Some(last)) = (samples.first(), samples.last())
-        && last.t - first.t > LONGEST_PLAUSIBLE_TRIAL
-    {
-        issues.add(
-            Severity::Warning,
-            IssueKind::Units,
-            file,
-            None,
-            Some("t"),
-            format!(
-                "the trial lasts {} s; is time in milliseconds? (seconds are expected)",
-                last.t - first.t
-            ),
-        );
+    if let (Some(first), Some(last)) = (samples.first(), samples.last()) {
+        warn_if_long(last.t - first.t, file, issues);
     }
     if rows_seen == 0 {
         issues.add(
@@ -368,6 +356,8 @@ pub(crate) fn read_markers(
     let mut negative_time = Tally::default();
     let mut millimetres = Tally::default();
     let mut large_sigma = Tally::default();
+    // Times of the first and the last frame.
+    let mut span: Option<[f64; 2]> = None;
     while let Some(row) = table.next_row(issues) {
         rows_seen += 1;
         let frame = row.integer::<u64>(0, issues);
@@ -445,6 +435,7 @@ pub(crate) fn read_markers(
                     negative_time.note(row.line, t);
                 }
                 current = Some((frame, t, ordinal, row.line));
+                span = Some(span.map_or([t, t], |[first, _]| [first, t]));
                 ordinal
             }
         };
@@ -503,6 +494,9 @@ pub(crate) fn read_markers(
             format!("standard deviations up to {w} m exceed a tenth of the phantom; are they in millimetres?")
         });
     }
+    if let Some([first, last]) = span {
+        warn_if_long(last - first, file, issues);
+    }
     if rows_seen == 0 {
         issues.add(
             Severity::Warning,
@@ -514,6 +508,23 @@ pub(crate) fn read_markers(
         );
     }
     Some(track)
+}
+
+/// Warns when a trial lasting `duration` seconds is implausibly long.
+fn warn_if_long(duration: f64, file: &Path, issues: &mut Collector) {
+    if duration > LONGEST_PLAUSIBLE_TRIAL {
+        issues.add(
+            Severity::Warning,
+            IssueKind::Units,
+            file,
+            None,
+            Some("t"),
+            format!(
+                "the trial lasts {} s; is time in milliseconds? (seconds are expected)",
+                Shown(duration)
+            ),
+        );
+    }
 }
 
 /// Reads `compression.csv`.

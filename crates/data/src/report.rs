@@ -84,6 +84,9 @@ pub enum IssueKind {
     /// `calibration/target.ron` is not valid RON of the target description,
     /// has an unusable value, or names an image that is not there.
     BadCalibration,
+    /// A camera frame is not a PNG image of 8- or 16-bit grey (judged from
+    /// its header; the reader does not decode images).
+    BadFrame,
     /// Further issues of one kind in one file that were counted but not listed.
     Suppressed,
 }
@@ -173,6 +176,39 @@ impl fmt::Display for ValidationReport {
     }
 }
 
+/// A number as a message shows it: in exponent form when it is very large
+/// or very small, so that a value of 1e300 does not print 301 digits.
+pub(crate) struct Shown(pub f64);
+
+impl fmt::Display for Shown {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let size = self.0.abs();
+        if size == 0.0 || !size.is_finite() || (1e-4..1e9).contains(&size) {
+            write!(f, "{}", self.0)
+        } else {
+            write!(f, "{:e}", self.0)
+        }
+    }
+}
+
+/// The longest text from a file that a message quotes whole.
+const LONGEST_QUOTE: usize = 40;
+
+/// Text from a file as a message quotes it: cut after [`LONGEST_QUOTE`]
+/// characters, so that one bad field of a million digits gives one line.
+pub(crate) struct Quoted<'a>(pub &'a str);
+
+impl fmt::Display for Quoted<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let length = self.0.chars().count();
+        if length <= LONGEST_QUOTE {
+            return f.write_str(self.0);
+        }
+        let head: String = self.0.chars().take(LONGEST_QUOTE).collect();
+        write!(f, "{head}... ({length} characters)")
+    }
+}
+
 /// How many issues of one kind one file may list before the rest are only
 /// counted: a file with a million bad rows gives a readable report.
 const LISTED_PER_FILE_AND_KIND: usize = 20;
@@ -251,5 +287,37 @@ impl Collector {
             root: root.to_path_buf(),
             issues,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{Quoted, Shown};
+
+    #[test]
+    fn numbers_far_from_one_are_shown_in_exponent_form() {
+        assert_eq!(Shown(0.0375).to_string(), "0.0375");
+        assert_eq!(Shown(-2500.0).to_string(), "-2500");
+        assert_eq!(Shown(0.0).to_string(), "0");
+        assert_eq!(Shown(1e300).to_string(), "1e300");
+        assert_eq!(Shown(-2.5e-7).to_string(), "-2.5e-7");
+        assert_eq!(Shown(f64::INFINITY).to_string(), "inf");
+    }
+
+    #[test]
+    fn long_text_is_cut_and_its_length_given() {
+        assert_eq!(Quoted("0.5x").to_string(), "0.5x");
+        let digits = "9".repeat(5_000_000);
+        let quoted = Quoted(&digits).to_string();
+        assert_eq!(
+            quoted,
+            format!("{}... (5000000 characters)", "9".repeat(40))
+        );
+        // Cut between characters, not inside one.
+        assert!(
+            Quoted(&"é".repeat(50))
+                .to_string()
+                .starts_with(&"é".repeat(40))
+        );
     }
 }

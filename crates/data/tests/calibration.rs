@@ -12,7 +12,7 @@ use needle_data::{
 
 mod common;
 
-use common::{copy_tree, tiny};
+use common::{copy_tree, grey_png, tiny};
 
 fn target() -> CalibrationTarget {
     CalibrationTarget {
@@ -27,7 +27,7 @@ fn target() -> CalibrationTarget {
 }
 
 /// The tiny bundle with a calibration folder holding `text` as
-/// `target.ron` and the images `images` (the format does not decode them).
+/// `target.ron` and the images `images`.
 fn bundle_with(text: &str, images: &[&str]) -> (tempfile::TempDir, PathBuf) {
     let dir = tempfile::tempdir().unwrap();
     let root = dir.path().join("tiny");
@@ -36,7 +36,7 @@ fn bundle_with(text: &str, images: &[&str]) -> (tempfile::TempDir, PathBuf) {
     fs::create_dir_all(&calibration).unwrap();
     fs::write(calibration.join("target.ron"), text).unwrap();
     for image in images {
-        fs::write(calibration.join(image), b"png").unwrap();
+        fs::write(calibration.join(image), grey_png()).unwrap();
     }
     (dir, root)
 }

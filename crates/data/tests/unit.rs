@@ -12,7 +12,7 @@ use needle_data::{
 
 mod common;
 
-use common::{copy_tree, tiny};
+use common::{copy_tree, grey_png, tiny};
 
 /// A copy of the tiny bundle in a fresh temporary folder.
 fn tiny_copy() -> (tempfile::TempDir, PathBuf) {
@@ -208,6 +208,110 @@ mod tiny_fixture {
         expected.calibration_dir = Some(copy.join("calibration"));
         assert_eq!(reread.campaign, expected);
         assert!(copy.join("calibration/README.md").is_file());
+    }
+}
+
+/// Entries the format names that exist but are not what it names: each is
+/// an issue, never a silent skip, and a pipe is never opened (reading one
+/// would wait for ever).
+mod entries_that_cannot_be_read {
+    use super::*;
+    use std::os::unix::ffi::OsStrExt;
+
+    /// The issues of one kind in the report of a tiny copy changed by `change`.
+    fn issues_after(change: impl FnOnce(&Path), kind: IssueKind) -> Vec<(String, Severity)> {
+        let (_dir, root) = tiny_copy();
+        change(&root);
+        validate_bundle(&root)
+            .issues
+            .iter()
+            .filter(|i| i.kind == kind)
+            .map(|i| (i.file.to_string_lossy().into_owned(), i.severity))
+            .collect()
+    }
+
+    fn replace_by_folder(path: &Path) {
+        fs::remove_file(path).unwrap();
+        fs::create_dir(path).unwrap();
+    }
+
+    fn replace_by_dangling_link(path: &Path) {
+        fs::remove_file(path).unwrap();
+        std::os::unix::fs::symlink("/nonexistent/file.csv", path).unwrap();
+    }
+
+    fn replace_by_pipe(path: &Path) {
+        fs::remove_file(path).unwrap();
+        let status = std::process::Command::new("mkfifo")
+            .arg(path)
+            .status()
+            .unwrap();
+        assert!(status.success(), "mkfifo {}", path.display());
+    }
+
+    #[test]
+    fn a_required_file_that_is_a_folder_or_a_dangling_link_is_unreadable_not_missing() {
+        let io = |change: fn(&Path), file: &'static str| {
+            let found = issues_after(|root| change(&root.join(file)), IssueKind::Io);
+            assert_eq!(found, [(file.to_owned(), Severity::Error)], "{file}");
+            let missing = issues_after(|root| change(&root.join(file)), IssueKind::MissingFile);
+            assert!(missing.is_empty(), "{file}: {missing:?}");
+        };
+        io(replace_by_folder, "trials/needle-01/tool.csv");
+        io(replace_by_folder, "markers_rest.csv");
+        io(replace_by_dangling_link, "trials/needle-01/tool.csv");
+        io(replace_by_pipe, "trials/needle-01/tool.csv");
+    }
+
+    #[test]
+    fn an_optional_file_that_cannot_be_read_is_an_error_not_left_out() {
+        let io = |change: fn(&Path), file: &'static str| {
+            let found = issues_after(|root| change(&root.join(file)), IssueKind::Io);
+            assert_eq!(found, [(file.to_owned(), Severity::Error)], "{file}");
+        };
+        io(replace_by_folder, "trials/probe-01/markers.csv");
+        io(replace_by_dangling_link, "trials/probe-01/markers.csv");
+        io(replace_by_pipe, "trials/probe-01/markers.csv");
+        io(replace_by_folder, "compression.csv");
+    }
+
+    #[test]
+    fn a_frames_entry_that_is_a_file_is_flagged() {
+        let found = issues_after(
+            |root| {
+                let frames = root.join("trials/probe-01/frames");
+                fs::remove_dir_all(&frames).unwrap();
+                fs::write(&frames, "x").unwrap();
+            },
+            IssueKind::Suspicious,
+        );
+        assert_eq!(
+            found,
+            [("trials/probe-01/frames".to_owned(), Severity::Warning)]
+        );
+    }
+
+    #[test]
+    fn a_trial_folder_whose_name_is_not_text_is_unlisted_and_still_read() {
+        let (_dir, root) = tiny_copy();
+        let raw = std::ffi::OsStr::from_bytes(b"n\xffx");
+        let folder = root.join("trials").join(raw);
+        copy_tree(&root.join("trials/needle-01"), &folder);
+        fs::write(
+            folder.join("tool.csv"),
+            "t,tip_x,tip_y,theta,fx,fy,mz\n0,0,0,0,0,x,0\n",
+        )
+        .unwrap();
+        let report = validate_bundle(&root);
+        let kinds: Vec<IssueKind> = report.issues.iter().map(|i| i.kind).collect();
+        // Read through its real name: its bad value is found, and no file
+        // is said to be missing.
+        assert_eq!(
+            kinds,
+            [IssueKind::UnlistedTrialFolder, IssueKind::BadNumber],
+            "{report}"
+        );
+        assert_eq!(report.issues[1].line, Some(2));
     }
 }
 
@@ -525,7 +629,7 @@ mod writer {
     fn builder_copies_frame_files() {
         let dir = tempfile::tempdir().unwrap();
         let scratch = dir.path().join("scratch.png");
-        fs::write(&scratch, b"png bytes").unwrap();
+        fs::write(&scratch, grey_png()).unwrap();
         let mut builder = BundleBuilder::new("frames", phantom());
         builder.markers_rest(vec![MarkerRest {
             id: 3,
@@ -551,7 +655,7 @@ mod writer {
         let frames = &bundle.trial("n").unwrap().frames;
         assert_eq!(frames.iter().map(|f| f.number).collect::<Vec<_>>(), [2, 7]);
         assert_eq!(frames[1].path, path.join("trials/n/frames/000007.png"));
-        assert_eq!(fs::read(&frames[1].path).unwrap(), b"png bytes");
+        assert_eq!(fs::read(&frames[1].path).unwrap(), grey_png());
     }
 
     #[test]

@@ -22,3 +22,14 @@ pub fn copy_tree(from: &Path, to: &Path) {
         }
     }
 }
+
+/// A 2 x 2 PNG of 8-bit grey, as the format asks of frames and
+/// calibration images.
+pub fn grey_png() -> Vec<u8> {
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    image::GrayImage::from_raw(2, 2, vec![0, 64, 128, 255])
+        .unwrap()
+        .write_to(&mut bytes, image::ImageFormat::Png)
+        .unwrap();
+    bytes.into_inner()
+}
