@@ -16,7 +16,9 @@ pub enum BundleError {
         report: ValidationReport,
     },
     /// The destination exists and the write options do not allow replacing it.
-    #[error("{path} already exists; pass Overwrite::Allow to replace it")]
+    #[error(
+        "{path} already exists and is left as it is; write elsewhere or remove it first (a program may pass Overwrite::Allow to replace a bundle)"
+    )]
     AlreadyExists {
         /// The destination.
         path: PathBuf,

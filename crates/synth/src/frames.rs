@@ -156,24 +156,32 @@ pub(crate) struct Staging {
 }
 
 impl Staging {
-    /// `.NAME.rendering` beside `bundle_out`.
+    /// A new folder `.NAME.rendering-PID-N` beside `bundle_out`, `N` the
+    /// first number whose folder does not exist: whatever is there already
+    /// (another run's, or a user's) is left alone.
     pub fn beside(bundle_out: &Path) -> Result<Self, SynthError> {
         let name = bundle_out
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_else(|| "bundle".into());
-        let path = bundle_out.with_file_name(format!(".{name}.rendering"));
-        if path.exists() {
-            std::fs::remove_dir_all(&path).map_err(|source| SynthError::Io {
-                path: path.clone(),
-                source,
-            })?;
-        }
-        std::fs::create_dir_all(&path).map_err(|source| SynthError::Io {
-            path: path.clone(),
+        let io = |path: &Path, source| SynthError::Io {
+            path: path.to_path_buf(),
             source,
-        })?;
-        Ok(Self { path })
+        };
+        let parent = bundle_out.parent().unwrap_or(Path::new(""));
+        if !parent.as_os_str().is_empty() {
+            std::fs::create_dir_all(parent).map_err(|source| io(parent, source))?;
+        }
+        let pid = std::process::id();
+        for n in 0.. {
+            let path = bundle_out.with_file_name(format!(".{name}.rendering-{pid}-{n}"));
+            match std::fs::create_dir(&path) {
+                Ok(()) => return Ok(Self { path }),
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
+                Err(source) => return Err(io(&path, source)),
+            }
+        }
+        unreachable!("some number names no folder yet")
     }
 
     /// The staging folder.
@@ -301,4 +309,27 @@ pub fn marker_pixel(camera: &TrueCamera, position: [f64; 3]) -> Result<Vector2<f
         .experiment_camera
         .project(&camera.calibration.face_pose, &face_point(position))
         .map_err(vision("a marker's pixel".into()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Staging;
+
+    #[test]
+    fn a_staging_folder_is_new_and_leaves_what_was_there() {
+        let dir = tempfile::tempdir().unwrap();
+        let bundle = dir.path().join("not-yet/bundle");
+        let first = Staging::beside(&bundle).unwrap();
+        let kept = first.path().join("mine.txt");
+        std::fs::write(&kept, "precious").unwrap();
+        let second = Staging::beside(&bundle).unwrap();
+        assert_ne!(first.path(), second.path());
+        assert!(second.path().is_dir());
+        assert_eq!(std::fs::read_to_string(&kept).unwrap(), "precious");
+        assert!(first.path().starts_with(dir.path().join("not-yet")));
+        let second_path = second.path().to_path_buf();
+        drop(second);
+        assert!(!second_path.exists(), "a staging folder goes with its run");
+        assert!(kept.exists());
+    }
 }

@@ -86,7 +86,9 @@ pub fn generate(
     let started = Instant::now();
     scenario.validate(&scenario.name)?;
     check_truth_path(bundle_out, truth_out)?;
-    if bundle_out.exists() {
+    // `symlink_metadata`: a link to nothing is in the way too, and the
+    // writer would refuse it only after the whole run.
+    if std::fs::symlink_metadata(bundle_out).is_ok() {
         return Err(SynthError::Bundle(
             needle_data::BundleError::AlreadyExists {
                 path: bundle_out.to_path_buf(),
@@ -271,10 +273,16 @@ pub fn generate(
         compression_modulus,
         camera: camera_truth,
     };
-    builder.write(bundle_out, WriteOptions::default())?;
     let text = ron::ser::to_string_pretty(&truth, ron::ser::PrettyConfig::default())
         .expect("the ground truth always serialises");
+    // The truth first, then the bundle, whose writer publishes it whole by a
+    // rename: a run leaves both or neither, never a bundle without its truth.
     write_new(truth_out, &text)?;
+    if let Err(error) = builder.write(bundle_out, WriteOptions::default()) {
+        // The file was created by this run (`create_new`), so it is ours to take back.
+        let _ = std::fs::remove_file(truth_out);
+        return Err(error.into());
+    }
     Ok(Summary {
         trials: order.len(),
         marker_rows,
@@ -391,28 +399,84 @@ pub(crate) fn needle_id(index: usize, plan: &crate::scenario::NeedlePlan) -> Str
 }
 
 fn check_truth_path(bundle_out: &Path, truth_out: &Path) -> Result<(), SynthError> {
-    let absolute = |p: &Path| -> PathBuf {
-        if p.is_absolute() {
-            p.to_path_buf()
-        } else {
-            std::env::current_dir()
-                .map(|d| d.join(p))
-                .unwrap_or_else(|_| p.to_path_buf())
-        }
-    };
-    if absolute(truth_out).starts_with(absolute(bundle_out)) {
+    // Compared as the paths will be when written: `..` and links, even to
+    // folders that do not exist yet, would otherwise lead the truth inside.
+    if resolved(truth_out).starts_with(resolved(bundle_out)) {
         return Err(SynthError::TruthPath {
             path: truth_out.to_path_buf(),
             reason: "lies inside the bundle folder".into(),
         });
     }
-    if truth_out.exists() {
+    if std::fs::symlink_metadata(truth_out).is_ok() {
         return Err(SynthError::TruthPath {
             path: truth_out.to_path_buf(),
             reason: "already exists; refusing to overwrite".into(),
         });
     }
-    Ok(())
+    // Its folder is made now, so that a folder that cannot be made fails the
+    // run before the work, not after it.
+    match truth_out.parent() {
+        Some(folder) if !folder.as_os_str().is_empty() => {
+            std::fs::create_dir_all(folder).map_err(|source| SynthError::Io {
+                path: folder.to_path_buf(),
+                source,
+            })
+        }
+        _ => Ok(()),
+    }
+}
+
+/// `path` made absolute, with every link followed (also a link to a folder
+/// not made yet) and `.` and `..` applied: the file it will name when
+/// written. Parts that do not exist are taken as written.
+fn resolved(path: &Path) -> PathBuf {
+    use std::path::Component;
+    // Links followed before giving up on a loop; Linux's own limit.
+    const MOST_LINKS: usize = 40;
+    let absolute = if path.is_absolute() {
+        path.to_path_buf()
+    } else {
+        std::env::current_dir().unwrap_or_default().join(path)
+    };
+    let mut links = 0;
+    let mut out = PathBuf::new();
+    let mut rest: Vec<std::ffi::OsString> = absolute
+        .components()
+        .rev()
+        .map(|c| c.as_os_str().to_os_string())
+        .collect();
+    while let Some(part) = rest.pop() {
+        match Path::new(&part).components().next() {
+            Some(Component::RootDir | Component::Prefix(_)) => out.push(&part),
+            Some(Component::CurDir) | None => {}
+            Some(Component::ParentDir) => {
+                out.pop();
+            }
+            Some(Component::Normal(name)) => {
+                let next = out.join(name);
+                match std::fs::read_link(&next) {
+                    Ok(target) if links < MOST_LINKS => {
+                        links += 1;
+                        // A relative link is read from the folder holding it.
+                        let target = if target.is_absolute() {
+                            target
+                        } else {
+                            out.join(target)
+                        };
+                        rest.extend(
+                            target
+                                .components()
+                                .rev()
+                                .map(|c| c.as_os_str().to_os_string()),
+                        );
+                        out = PathBuf::new();
+                    }
+                    _ => out = next,
+                }
+            }
+        }
+    }
+    out
 }
 
 fn write_new(path: &Path, text: &str) -> Result<(), SynthError> {

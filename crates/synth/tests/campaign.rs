@@ -232,6 +232,55 @@ fn bundle_reads_back_and_truth_lies_beside_it() {
 }
 
 #[test]
+fn the_truth_is_never_led_into_the_bundle_and_a_run_leaves_both_or_neither() {
+    let dir = tempfile::tempdir().unwrap();
+    let at = |name: &str| dir.path().join(name);
+    let refused = |bundle: &Path, truth: &Path| {
+        let result = generate(&small(), bundle, truth, |_| {});
+        assert!(
+            matches!(result, Err(SynthError::TruthPath { .. })),
+            "{bundle:?}, {truth:?}: {result:?}"
+        );
+        assert!(std::fs::symlink_metadata(bundle).is_err() && !truth.exists());
+    };
+    // Through a folder that does not exist and back out of it.
+    refused(&at("b1"), &at("x/../b1/truth.ron"));
+    // Through a link made beforehand to the bundle-to-be.
+    std::os::unix::fs::symlink("b2", at("link2")).unwrap();
+    refused(&at("b2"), &at("link2/truth.ron"));
+    std::os::unix::fs::symlink(at("b3/inner"), at("link3")).unwrap();
+    refused(&at("b3"), &at("link3/../truth.ron"));
+    // A link to nothing where the bundle would go is in the way, before any work.
+    std::os::unix::fs::symlink("nowhere", at("dangling")).unwrap();
+    assert!(matches!(
+        generate(&small(), &at("dangling"), &at("d.ron"), |_| {}),
+        Err(SynthError::Bundle(
+            needle_data::BundleError::AlreadyExists { .. }
+        ))
+    ));
+    assert!(!at("d.ron").exists());
+    // The truth's folder is made; the run writes both files.
+    let mut probes_only = small();
+    probes_only.needles.velocities.clear();
+    probes_only.compression = None;
+    let truth = at("new/deeper/truth.ron");
+    generate(&probes_only, &at("b4"), &truth, |_| {}).unwrap();
+    assert!(truth.is_file() && at("b4/bundle.ron").is_file());
+    // A bundle the writer refuses (here: its folder cannot be made, a file
+    // being in the way) takes its truth file back.
+    std::fs::write(at("file"), "x").unwrap();
+    let truth = at("t5.ron");
+    assert!(generate(&probes_only, &at("file/b5"), &truth, |_| {}).is_err());
+    assert!(!truth.exists(), "no truth without its bundle");
+    // A truth that cannot be written fails the run before the bundle is.
+    assert!(matches!(
+        generate(&probes_only, &at("b6"), &at("file/t6.ron"), |_| {}),
+        Err(SynthError::Io { .. })
+    ));
+    assert!(!at("b6").exists(), "no bundle without its truth");
+}
+
+#[test]
 fn same_seed_same_bundle_other_seed_other_noise() {
     let dir = tempfile::tempdir().unwrap();
     let mut s = small();
