@@ -12,7 +12,7 @@ use std::path::Path;
 use serde::Deserialize;
 
 use crate::layout::trial_id_problem;
-use crate::report::{Collector, IssueKind, Severity, Shown};
+use crate::report::{Collector, IssueKind, Quoted, Severity, Shown};
 use crate::ron_lines::field_lines;
 use crate::types::{Bundle, FORMAT_VERSION};
 
@@ -31,12 +31,14 @@ pub(crate) fn parse_manifest(text: &str, file: &Path, issues: &mut Collector) ->
     let bundle = match ron::from_str::<Bundle>(text) {
         Ok(bundle) => bundle,
         Err(err) => {
-            // A newer format may well fail the format-1 schema; say that,
+            // A newer format may well fail the format-1 schema, and a
+            // version that is no whole number fails it too; say that,
             // rather than the schema error it causes.
             if let Ok(probe) = ron::from_str::<FormatProbe>(text)
-                && probe.format != FORMAT_VERSION
+                && let Ok(written) = ron::to_string(&probe.format)
+                && written != FORMAT_VERSION.to_string()
             {
-                unsupported_format(probe.format, line_of("format"), file, issues);
+                unsupported_format(&written, line_of("format"), file, issues);
                 return None;
             }
             report_ron_error(&err, file, issues);
@@ -44,21 +46,22 @@ pub(crate) fn parse_manifest(text: &str, file: &Path, issues: &mut Collector) ->
         }
     };
     if bundle.format != FORMAT_VERSION {
-        unsupported_format(bundle.format, line_of("format"), file, issues);
+        unsupported_format(&bundle.format.to_string(), line_of("format"), file, issues);
         return None;
     }
     check_values(&bundle, file, &line_of, issues);
     Some(bundle)
 }
 
-/// Just the version, with every other field ignored.
+/// Just the version, whatever its type, with every other field ignored.
 #[derive(Deserialize)]
 #[serde(rename = "Bundle")]
 struct FormatProbe {
-    format: u32,
+    format: ron::Value,
 }
 
-fn unsupported_format(format: u32, line: Option<u64>, file: &Path, issues: &mut Collector) {
+/// `format` is the version as the file writes it.
+fn unsupported_format(format: &str, line: Option<u64>, file: &Path, issues: &mut Collector) {
     issues.add(
         Severity::Error,
         IssueKind::UnsupportedFormat,
@@ -66,7 +69,8 @@ fn unsupported_format(format: u32, line: Option<u64>, file: &Path, issues: &mut 
         line,
         Some("format"),
         format!(
-            "format version {format} is not supported; this reader reads format {FORMAT_VERSION}"
+            "format version {} is not supported; this reader reads format {FORMAT_VERSION}",
+            Quoted(format)
         ),
     );
 }
