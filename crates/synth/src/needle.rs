@@ -281,6 +281,9 @@ fn insert_one(
             [] => vec![0.0; dofs],
         };
         let mut state = StateIteration::from_guess(body, &rim, &run, tip, guess, shaft_step);
+        let during = |e: SynthError| {
+            e.during(|| format!("the needle on the line x = {} m at {tip} m deep", plan.line))
+        };
         let solved = loop {
             let (solved, next) = solver
                 .solve_and_place(
@@ -293,12 +296,11 @@ fn insert_one(
                     shaft_step,
                     &mut solves,
                 )
-                .map_err(|e| {
-                    e.during(|| {
-                        format!("the needle on the line x = {} m at {tip} m deep", plan.line)
-                    })
-                })?;
-            if state.advance(body, &rim, &run, &solved.u, &next, shaft_step)? {
+                .map_err(during)?;
+            if state
+                .advance(body, &rim, &run, &solved.u, &next, shaft_step)
+                .map_err(during)?
+            {
                 break solved;
             }
         };
@@ -399,6 +401,18 @@ impl StateIteration {
         shaft_step: f64,
     ) -> Result<bool, SynthError> {
         self.iterations += 1;
+        if let Some(y) = self.placed.lost.or(next.lost) {
+            return Err(SynthError::NoConvergence {
+                what: format!(
+                    "finding the material point of the needle shaft at y = {y:e} m (a step \
+                     that is not finite: the displacement or its gradient overflows, the \
+                     phantom far too soft for its load) at tip depth {} m",
+                    self.tip
+                ),
+                residual: f64::INFINITY,
+                iterations: self.iterations,
+            });
+        }
         let largest_move = next.moved_from(&self.placed);
         if largest_move < CONSISTENCY_TOLERANCE {
             // Keep the placement that was applied, so that the field
@@ -479,6 +493,11 @@ pub(crate) struct Placement {
     /// Every element the displacement was read in: the loaded points' and
     /// the entry's rims.
     read: Vec<usize>,
+    /// Spatial y of the first shaft point (0 for the entry) whose material
+    /// point could not be found, its loads left out: the state fails with
+    /// a typed error ([`StateIteration::advance`]) rather than load a
+    /// field that has overflowed.
+    lost: Option<f64>,
 }
 
 impl Placement {
@@ -498,6 +517,7 @@ impl Placement {
             entry,
             points,
             read,
+            lost: None,
         }
     }
 
@@ -542,43 +562,67 @@ pub(crate) fn place(
     shaft_step: f64,
 ) -> Placement {
     let line = run.plan.line;
+    let Some((x_entry, entry)) = entry_point(body, rim, line, u) else {
+        return Placement {
+            entry: 0.0,
+            points: Vec::new(),
+            read: Vec::new(),
+            lost: Some(0.0),
+        };
+    };
+    let segments = (tip / shaft_step).ceil().max(1.0) as usize;
+    let mut read = rim.elements(body, x_entry, None);
+    let mut points = Vec::new();
+    let mut lost = None;
+    for p in run.load.points(entry, tip, segments) {
+        let found = find_material_point(body, rim, [line, p.y, 0.0], u)
+            .and_then(|x| Some((x, body.locate(x)?)));
+        match found {
+            Some((x, located)) => {
+                read.extend(rim.elements(body, x, Some(&located)));
+                points.push((x, p.force, located));
+            }
+            None => {
+                lost.get_or_insert(p.y);
+            }
+        }
+    }
+    Placement {
+        entry,
+        points,
+        read,
+        lost,
+    }
+}
+
+/// The material point $X_e$ of the entry on the front face, with
+/// $x_e + u_x(X_e) = x_l$, and the spatial y of the entry, $u_y(X_e)$;
+/// `None` if a Newton step or the entry is not finite.
+fn entry_point(body: &Body, rim: &Rim, line: f64, u: &[f64]) -> Option<([f64; 3], f64)> {
     let mut x_entry = [line, 0.0, 0.0];
     for _ in 0..50 {
         clamp_inside(body, &mut x_entry);
-        let (d, gradient) = rim
-            .value_and_gradient(body, x_entry, u)
-            .expect("the entry lies on the front face");
+        let (d, gradient) = rim.value_and_gradient(body, x_entry, u)?;
         let step = (x_entry[0] + d[0] - line) / (1.0 + gradient[0][0]);
+        if !step.is_finite() {
+            return None;
+        }
         x_entry[0] -= step;
         if step.abs() < 1e-13 {
             break;
         }
     }
     clamp_inside(body, &mut x_entry);
-    let entry = rim
-        .value_and_gradient(body, x_entry, u)
-        .expect("points are clamped into the body")
-        .0[1];
-    let segments = (tip / shaft_step).ceil().max(1.0) as usize;
-    let mut read = rim.elements(body, x_entry, None);
-    let points = run
-        .load
-        .points(entry, tip, segments)
-        .into_iter()
-        .map(|p| {
-            let x = material_point(body, rim, [line, p.y, 0.0], u);
-            let located = body
-                .locate(x)
-                .expect("material points are kept inside the body");
-            read.extend(rim.elements(body, x, Some(&located)));
-            (x, p.force, located)
-        })
-        .collect();
-    Placement {
-        entry,
-        points,
-        read,
-    }
+    let entry = rim.value_and_gradient(body, x_entry, u)?.0[1];
+    entry.is_finite().then_some((x_entry, entry))
+}
+
+/// The material point $X$ with $X + u(X) = p$ (see [`find_material_point`])
+/// in the field of a state the consistency iteration accepted, whose
+/// placement found every shaft point up to the tip.
+pub(crate) fn material_point(body: &Body, rim: &Rim, p: [f64; 3], u: &[f64]) -> [f64; 3] {
+    find_material_point(body, rim, p, u)
+        .expect("an accepted state's field, which placed the shaft, places its tip")
 }
 
 /// The material point $X$ with $X + u(X) = p$, by Newton's method on
@@ -587,14 +631,15 @@ pub(crate) fn place(
 /// gradient ahead of the tip approaches -1). Only x and y are solved: the
 /// needle's material line stays in the mid-plane by the slab's symmetry
 /// (the mesh's small asymmetry would otherwise make z hop between the
-/// elements above and below the loaded plane).
-pub(crate) fn material_point(body: &Body, rim: &Rim, p: [f64; 3], u: &[f64]) -> [f64; 3] {
+/// elements above and below the loaded plane). `None` if a step is not
+/// finite: a field, or its gradient, so large that $I + \nabla u$
+/// overflows (a phantom far too soft for its load), which no point of the
+/// body answers.
+fn find_material_point(body: &Body, rim: &Rim, p: [f64; 3], u: &[f64]) -> Option<[f64; 3]> {
     let mut x = p;
     for _ in 0..50 {
         clamp_inside(body, &mut x);
-        let (d, mut jacobian) = rim
-            .value_and_gradient(body, x, u)
-            .expect("points are clamped into the body");
+        let (d, mut jacobian) = rim.value_and_gradient(body, x, u)?;
         let r = [x[0] + d[0] - p[0], x[1] + d[1] - p[1], 0.0];
         jacobian[2] = [0.0; 3];
         for k in 0..3 {
@@ -605,6 +650,9 @@ pub(crate) fn material_point(body: &Body, rim: &Rim, p: [f64; 3], u: &[f64]) -> 
         let step: Vec<f64> = (0..3)
             .map(|i| (0..3).map(|j| inverse[i][j] * r[j]).sum())
             .collect();
+        if !step.iter().all(|s| s.is_finite()) {
+            return None;
+        }
         for c in 0..3 {
             x[c] -= step[c];
         }
@@ -613,7 +661,7 @@ pub(crate) fn material_point(body: &Body, rim: &Rim, p: [f64; 3], u: &[f64]) -> 
         }
     }
     clamp_inside(body, &mut x);
-    x
+    Some(x)
 }
 
 /// Points on the needle's surface per reading of the drag.

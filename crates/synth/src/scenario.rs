@@ -62,6 +62,14 @@ pub struct PhantomSpec {
     pub markers: (usize, usize),
 }
 
+impl PhantomSpec {
+    /// The least Young's modulus accepted (Pa): the softest gels that
+    /// hold their shape are tens of pascals (brain tissue about a
+    /// kilopascal, the paper's PVC 25 kPa); below a pascal a phantom is
+    /// no solid, and its field overflows under a needle's load.
+    pub const MIN_YOUNGS_MODULUS: f64 = 1.0;
+}
+
 /// Discretisation of the truth.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -115,6 +123,16 @@ impl Resolution {
     /// at the singular lines, finer than any study has needed (the finest
     /// reference, refinement 12 with 8 levels, `docs/truth-world.md`).
     pub const MAX_PLANE_GRADING: usize = 10;
+
+    /// The most depth intervals of an insertion (`depth_step`), shaft
+    /// segments over its final depth (`shaft_step`) and indentation
+    /// states of a probe (`indentation_step`) accepted: 50 times the
+    /// fixtures' most (100 shaft segments). Each state is a solve of the
+    /// phantom and each segment two Newton solves in every consistency
+    /// iteration, and an insertion keeps every state's loaded points:
+    /// at this bound about 0.8 GB, where steps of a picometre asked for
+    /// more memory than there is and the process was killed.
+    pub const MAX_STEPS: usize = 5_000;
 }
 
 /// Levels of halving of the 3-D slab's elements towards lines where its
@@ -251,6 +269,13 @@ pub struct Sensors {
     pub marker_sigma: f64,
 }
 
+impl Sensors {
+    /// The highest force sensor or camera rate accepted (Hz): a
+    /// megahertz, a hundred times a fast force sensor's (the Nano-17's
+    /// 7 kHz) or a high-speed camera's (the paper's 100 Hz and 30 Hz).
+    pub const MAX_RATE: f64 = 1e6;
+}
+
 /// An unconfined compression test of a block cut from the same material.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -358,7 +383,10 @@ pub fn load_scenario(path: impl AsRef<Path>) -> Result<Scenario, SynthError> {
         path: path.to_path_buf(),
         source,
     })?;
-    let scenario: Scenario = ron::from_str(&text).map_err(|e| SynthError::Parse {
+    // Spreadsheets and Windows editors start UTF-8 files with a byte-order
+    // mark, which RON reads as a stray character before the struct.
+    let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
+    let scenario: Scenario = ron::from_str(text).map_err(|e| SynthError::Parse {
         path: path.to_path_buf(),
         line: e.span.start.line,
         column: e.span.start.col,
@@ -415,15 +443,104 @@ impl FieldChecker<'_> {
 }
 
 impl Scenario {
+    /// The latest day of a trial or the compression test accepted: ten
+    /// years after casting, beyond any campaign on one phantom.
+    pub const MAX_DAY: f64 = 3650.0;
+
+    /// The range of the stiffening factor $1 + r\,d$
+    /// (`effects.material_stiffening`) accepted on every day a trial or
+    /// the compression test is done: the paper measured 6 % over several
+    /// days, and a modulus fallen to a tenth or grown tenfold is no longer
+    /// the phantom that linear law extrapolates (nor, below zero, a
+    /// solid at all).
+    pub const STIFFENING_FACTOR: (f64, f64) = (0.1, 10.0);
+
+    /// The most rows of one table a trial writes (its force samples, or
+    /// its camera frames times the markers) or points of the compression
+    /// curve accepted: 15 times the fixtures' most, the markers of an
+    /// insertion of 50 s at 1 mm/s (1501 frames of 441 markers), and
+    /// some 0.5 GB of a table, where a rate or velocity far out asked for
+    /// more memory than there is and the process was killed.
+    pub const MAX_ROWS: usize = 10_000_000;
+
+    /// Every day a trial or the compression test is done, with its field.
+    fn days(&self) -> Vec<(String, f64)> {
+        let compression = self
+            .compression
+            .iter()
+            .map(|t| ("compression.day".to_string(), t.day));
+        let probes = self
+            .probes
+            .iter()
+            .enumerate()
+            .map(|(i, probe)| (format!("probes[{i}].day"), probe.day));
+        let needles = self
+            .needles
+            .days
+            .iter()
+            .enumerate()
+            .map(|(i, &day)| (format!("needles.days[{i}]"), day));
+        compression.chain(probes).chain(needles).collect()
+    }
+
+    /// Checks that a trial of `duration` (s) writes at most
+    /// [`Scenario::MAX_ROWS`] force samples and marker rows; `field` is
+    /// the velocity that sets its duration.
+    fn check_rows(
+        &self,
+        c: &FieldChecker<'_>,
+        duration: f64,
+        field: &str,
+    ) -> Result<(), SynthError> {
+        let s = &self.sensors;
+        let samples = (duration * s.force_rate).floor() + 1.0;
+        c.check(samples <= Self::MAX_ROWS as f64, field, || {
+            format!(
+                "a trial of {duration} s gives {samples} force samples at \
+                 sensors.force_rate {} Hz, above the {} accepted",
+                s.force_rate,
+                Self::MAX_ROWS
+            )
+        })?;
+        let markers = self.phantom.markers.0 as f64 * self.phantom.markers.1 as f64;
+        let rows = ((duration * s.camera_rate).floor() + 1.0) * markers;
+        c.check(rows <= Self::MAX_ROWS as f64, field, || {
+            format!(
+                "a trial of {duration} s gives {rows} marker rows at sensors.camera_rate {} \
+                 Hz with {markers} markers, above the {} accepted",
+                s.camera_rate,
+                Self::MAX_ROWS
+            )
+        })
+    }
+
     /// Checks every field; `source` names the file (or the scenario) in
     /// the error.
     pub fn validate(&self, source: &str) -> Result<(), SynthError> {
         let c = FieldChecker { source };
+        let day = |day: f64, field: &str| {
+            c.check((0.0..=Self::MAX_DAY).contains(&day), field, || {
+                format!(
+                    "must be 0 to {} days (ten years) after casting, got {day}",
+                    Self::MAX_DAY
+                )
+            })
+        };
         let p = &self.phantom;
         c.positive(p.width, "phantom.width")?;
         c.positive(p.depth, "phantom.depth")?;
         c.positive(p.thickness, "phantom.thickness")?;
-        c.positive(p.youngs_modulus, "phantom.youngs_modulus")?;
+        c.check(
+            p.youngs_modulus.is_finite() && p.youngs_modulus >= PhantomSpec::MIN_YOUNGS_MODULUS,
+            "phantom.youngs_modulus",
+            || {
+                format!(
+                    "must be finite and at least {} Pa, got {}",
+                    PhantomSpec::MIN_YOUNGS_MODULUS,
+                    p.youngs_modulus
+                )
+            },
+        )?;
         c.within(p.poisson_ratio, -1.0, 0.5, "phantom.poisson_ratio")?;
         c.check(
             p.markers.0 >= 2 && p.markers.1 >= 2,
@@ -521,19 +638,25 @@ impl Scenario {
         c.positive(self.shaft.density, "shaft.density")?;
         c.positive(self.shaft.reference_velocity, "shaft.reference_velocity")?;
         let s = &self.sensors;
-        c.positive(s.force_rate, "sensors.force_rate")?;
+        for (rate, field) in [
+            (s.force_rate, "sensors.force_rate"),
+            (s.camera_rate, "sensors.camera_rate"),
+        ] {
+            c.within(rate, 0.0, Sensors::MAX_RATE, field)?;
+        }
         c.non_negative(s.force_resolution, "sensors.force_resolution")?;
         c.non_negative(s.force_sigma, "sensors.force_sigma")?;
-        c.positive(s.camera_rate, "sensors.camera_rate")?;
         c.non_negative(s.marker_sigma, "sensors.marker_sigma")?;
         if let Some(t) = &self.compression {
             c.positive(t.side, "compression.side")?;
             c.positive(t.height, "compression.height")?;
             c.within(t.max_strain, 0.0, 0.6, "compression.max_strain")?;
-            c.check(t.samples >= 2, "compression.samples", || {
-                format!("needs at least 2 points, got {}", t.samples)
-            })?;
-            c.non_negative(t.day, "compression.day")?;
+            c.check(
+                (2..=Self::MAX_ROWS).contains(&t.samples),
+                "compression.samples",
+                || format!("must be 2 to {} points, got {}", Self::MAX_ROWS, t.samples),
+            )?;
+            day(t.day, "compression.day")?;
         }
         for (i, probe) in self.probes.iter().enumerate() {
             let f = |name: &str| format!("probes[{i}].{name}");
@@ -573,17 +696,47 @@ impl Scenario {
                 )?;
             }
             c.positive(probe.velocity, &f("velocity"))?;
-            c.non_negative(probe.day, &f("day"))?;
+            self.check_rows(&c, probe.indentation / probe.velocity, &f("velocity"))?;
+            day(probe.day, &f("day"))?;
+            let states = (probe.indentation / r.indentation_step).ceil();
+            c.check(
+                states <= Resolution::MAX_STEPS as f64,
+                "resolution.indentation_step",
+                || {
+                    format!(
+                        "gives {states} states to the indentation {} m of {}, above the {} \
+                         accepted",
+                        probe.indentation,
+                        f("indentation"),
+                        Resolution::MAX_STEPS
+                    )
+                },
+            )?;
         }
         // No velocities (or no days) is a campaign without insertions.
         let n = &self.needles;
+        c.within(n.depth, 0.0, p.depth, "needles.depth")?;
         for (i, &v) in n.velocities.iter().enumerate() {
-            c.positive(v, &format!("needles.velocities[{i}]"))?;
+            let field = format!("needles.velocities[{i}]");
+            c.positive(v, &field)?;
+            self.check_rows(&c, n.depth / v, &field)?;
         }
         for (i, &d) in n.days.iter().enumerate() {
-            c.non_negative(d, &format!("needles.days[{i}]"))?;
+            day(d, &format!("needles.days[{i}]"))?;
         }
-        c.within(n.depth, 0.0, p.depth, "needles.depth")?;
+        for (step, field) in [
+            (r.depth_step, "resolution.depth_step"),
+            (r.shaft_step, "resolution.shaft_step"),
+        ] {
+            let count = (n.depth / step).ceil();
+            c.check(count <= Resolution::MAX_STEPS as f64, field, || {
+                format!(
+                    "splits the needle depth {} m into {count} steps, above the {} accepted",
+                    n.depth,
+                    Resolution::MAX_STEPS
+                )
+            })?;
+        }
         c.positive(n.line_spacing, "needles.line_spacing")?;
         // The rim must stay inside the slab, clear of its faces.
         c.check(
@@ -596,19 +749,49 @@ impl Scenario {
                 )
             },
         )?;
+        // A line closer to the previous than the needle's diameter runs
+        // through its hole, where every insertion is meant in fresh
+        // material.
+        c.check(
+            n.line_spacing >= 2.0 * n.radius,
+            "needles.line_spacing",
+            || {
+                format!(
+                    "must be at least the needle's diameter {}, got {}",
+                    2.0 * n.radius,
+                    n.line_spacing
+                )
+            },
+        )?;
+        // The rim strictly inside the side faces: the tissue between the
+        // needle and a face must not vanish.
         if let Some(last) = n.plan().last() {
             c.check(
-                n.first_line > 0.0 && last.line < p.width,
+                n.first_line - n.radius > 0.0 && last.line + n.radius < p.width,
                 "needles.first_line",
                 || {
                     format!(
-                        "insertion lines {} .. {} leave the phantom width {}",
-                        n.first_line, last.line, p.width
+                        "insertion lines {} .. {} of a needle of radius {} leave the phantom \
+                         width {}",
+                        n.first_line, last.line, n.radius, p.width
                     )
                 },
             )?;
         }
         self.effects.validate(&c, self)?;
+        if let Some(stiffening) = &self.effects.material_stiffening {
+            let (lo, hi) = Self::STIFFENING_FACTOR;
+            for (field, on) in self.days() {
+                let factor = stiffening.factor(on);
+                c.check((lo..=hi).contains(&factor), &field, || {
+                    format!(
+                        "the modulus factor 1 + rate_per_day * day = {factor} on day {on} \
+                         (effects.material_stiffening.rate_per_day {}) must be {lo} to {hi}",
+                        stiffening.rate_per_day
+                    )
+                })?;
+            }
+        }
         if let Some(frames) = &self.frames {
             frames.check(&c, self)?;
         }

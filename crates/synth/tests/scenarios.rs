@@ -289,6 +289,221 @@ fn out_of_range_value_names_the_dotted_field() {
     s.validate("memory").unwrap();
 }
 
+/// The field `s` is refused for, failing unless it is refused.
+fn refused_field(s: &Scenario) -> String {
+    match s.validate("memory") {
+        Err(SynthError::InvalidField { field, .. }) => field,
+        other => panic!("expected an invalid field, got {other:?}"),
+    }
+}
+
+#[test]
+fn stiffening_keeps_the_modulus_in_range_on_every_day_used() {
+    // The file names the first day used, the compression test's (day 6),
+    // where 1 - 0.19 * 6 is negative.
+    let text = Scenario::paper_default()
+        .to_ron()
+        .replace("rate_per_day: 0.012", "rate_per_day: -0.19");
+    let (_dir, path) = write_temp(&text);
+    match load_scenario(&path) {
+        Err(SynthError::InvalidField {
+            source_name, field, ..
+        }) => {
+            assert_eq!(field, "compression.day");
+            assert!(source_name.contains("bad.ron"));
+        }
+        other => panic!("expected an invalid field, got {other:?}"),
+    }
+    let softening = |s: &mut Scenario, rate: f64| {
+        s.effects.material_stiffening.as_mut().unwrap().rate_per_day = rate;
+    };
+    let mut s = Scenario::paper_default();
+    softening(&mut s, -0.19);
+    s.compression.as_mut().unwrap().day = 1.0;
+    s.needles.days = vec![2.0, 4.0];
+    s.probes[2].day = 4.0;
+    // 1 - 0.19 * 4 = 0.24: soft, but a solid.
+    s.validate("memory").unwrap();
+    s.needles.days = vec![2.0, 10.0];
+    assert_eq!(refused_field(&s), "needles.days[1]");
+    s.needles.days = vec![2.0];
+    s.probes[2].day = 4.8;
+    assert_eq!(refused_field(&s), "probes[2].day");
+    // Tenfold and more.
+    let mut s = Scenario::paper_default();
+    softening(&mut s, 0.5);
+    s.probes[1].day = 19.0;
+    assert_eq!(refused_field(&s), "probes[1].day");
+    // Without stiffening the same day is only a day.
+    s.effects.material_stiffening = None;
+    s.validate("memory").unwrap();
+}
+
+#[test]
+fn days_beyond_ten_years_are_refused() {
+    let mut s = Scenario::null();
+    s.probes[0].day = Scenario::MAX_DAY;
+    s.validate("memory").unwrap();
+    for day in [
+        Scenario::MAX_DAY + 1.0,
+        1e300,
+        f64::INFINITY,
+        -1.0,
+        f64::NAN,
+    ] {
+        let mut s = Scenario::null();
+        s.probes[0].day = day;
+        assert_eq!(refused_field(&s), "probes[0].day", "{day}");
+        let mut s = Scenario::null();
+        s.needles.days[0] = day;
+        assert_eq!(refused_field(&s), "needles.days[0]", "{day}");
+        let mut s = Scenario::null();
+        s.compression.as_mut().unwrap().day = day;
+        assert_eq!(refused_field(&s), "compression.day", "{day}");
+    }
+}
+
+#[test]
+fn needle_rims_stay_clear_of_the_side_faces() {
+    let s = Scenario::paper_default();
+    let (radius, width) = (s.needles.radius, s.phantom.width);
+    let lines = s.needles.plan().len() as f64;
+    let span = (lines - 1.0) * s.needles.line_spacing;
+    // The audit's line 0.1 mm from the side, inside the needle's radius.
+    for first in [1e-4, radius, width - span - radius, width - span - 1e-4] {
+        let mut s = s.clone();
+        s.needles.first_line = first;
+        assert_eq!(refused_field(&s), "needles.first_line", "{first}");
+    }
+    for first in [radius + 1e-5, width - span - radius - 1e-5] {
+        let mut s = s.clone();
+        s.needles.first_line = first;
+        s.validate("memory").unwrap();
+    }
+}
+
+#[test]
+fn insertion_lines_are_a_needle_diameter_apart() {
+    let s = Scenario::paper_default();
+    let diameter = 2.0 * s.needles.radius;
+    for spacing in [1e-9, diameter - 1e-6] {
+        let mut s = s.clone();
+        s.needles.line_spacing = spacing;
+        assert_eq!(refused_field(&s), "needles.line_spacing", "{spacing}");
+    }
+    let mut s = s.clone();
+    s.needles.line_spacing = diameter;
+    s.validate("memory").unwrap();
+}
+
+#[test]
+fn sizes_that_would_exhaust_memory_are_refused() {
+    type Change = fn(&mut Scenario);
+    let cases: [(Change, &str); 10] = [
+        (
+            |s| s.compression.as_mut().unwrap().samples = Scenario::MAX_ROWS + 1,
+            "compression.samples",
+        ),
+        (|s| s.sensors.force_rate = 1e12, "sensors.force_rate"),
+        (|s| s.sensors.camera_rate = 1e12, "sensors.camera_rate"),
+        (|s| s.probes[0].velocity = 1e-12, "probes[0].velocity"),
+        (|s| s.needles.velocities[0] = 1e-12, "needles.velocities[0]"),
+        // Half the highest rate: a probe's 3 s are 1.5 million samples,
+        // an insertion's 50 s 25 million.
+        (
+            |s| s.sensors.force_rate = 0.5 * needle_synth::scenario::Sensors::MAX_RATE,
+            "needles.velocities[0]",
+        ),
+        // 30 001 frames of 441 markers.
+        (|s| s.sensors.camera_rate = 1e4, "probes[0].velocity"),
+        (|s| s.resolution.shaft_step = 1e-15, "resolution.shaft_step"),
+        (|s| s.resolution.depth_step = 1e-12, "resolution.depth_step"),
+        (
+            |s| s.resolution.indentation_step = 1e-12,
+            "resolution.indentation_step",
+        ),
+    ];
+    for (change, name) in cases {
+        let mut s = Scenario::paper_default();
+        change(&mut s);
+        assert_eq!(refused_field(&s), name);
+    }
+    // Just within: as many steps as accepted.
+    let mut s = Scenario::paper_default();
+    s.resolution.shaft_step = s.needles.depth / Resolution::MAX_STEPS as f64;
+    s.resolution.depth_step = s.resolution.shaft_step;
+    s.compression.as_mut().unwrap().samples = Scenario::MAX_ROWS;
+    s.validate("memory").unwrap();
+}
+
+#[test]
+fn a_phantom_softer_than_a_pascal_is_refused() {
+    let text = Scenario::null()
+        .to_ron()
+        .replace("youngs_modulus: 25300.0", "youngs_modulus: 1e-300");
+    let (_dir, path) = write_temp(&text);
+    match load_scenario(&path) {
+        Err(SynthError::InvalidField {
+            source_name, field, ..
+        }) => {
+            assert_eq!(field, "phantom.youngs_modulus");
+            assert!(source_name.contains("bad.ron"));
+        }
+        other => panic!("expected an invalid field, got {other:?}"),
+    }
+    for modulus in [0.5, 0.0, f64::INFINITY, f64::NAN] {
+        let mut s = Scenario::null();
+        s.phantom.youngs_modulus = modulus;
+        assert_eq!(refused_field(&s), "phantom.youngs_modulus", "{modulus}");
+    }
+    let mut s = Scenario::null();
+    s.phantom.youngs_modulus = 1.0;
+    s.validate("memory").unwrap();
+}
+
+#[test]
+fn an_overflowing_tip_force_is_a_typed_error_not_a_panic() {
+    // A small plane-strain campaign of one insertion whose tip peak
+    // overflows the phantom's field: the needle's material points cannot
+    // be found, which must fail as a Newton failure, not a panic.
+    let mut s = Scenario::effect_alone(EffectId::TipCuttingForce);
+    s.phantom.markers = (6, 6);
+    s.resolution.refinement = 1;
+    s.resolution.depth_step = 0.005;
+    s.resolution.shaft_step = 0.002;
+    s.probes.clear();
+    s.compression = None;
+    s.needles.velocities = vec![0.009];
+    s.needles.days = vec![2.0];
+    s.needles.depth = 0.02;
+    s.effects.tip_cutting_force.as_mut().unwrap().amplitude = 1e300;
+    match needle_synth::respond(&s) {
+        Err(e @ SynthError::NoConvergence { .. }) => {
+            let text = e.to_string();
+            assert!(
+                text.contains("material point of the needle shaft"),
+                "{text}"
+            );
+            assert!(text.contains("the needle on the line x = "), "{text}");
+        }
+        other => panic!("expected a Newton failure, got {:?}", other.err()),
+    }
+}
+
+#[test]
+fn a_byte_order_mark_is_skipped() {
+    let text = format!("\u{feff}{}", Scenario::null().to_ron());
+    let (_dir, path) = write_temp(&text);
+    assert_eq!(load_scenario(&path).unwrap(), Scenario::null());
+    // Only at the start: anywhere else it is a stray character.
+    let text = Scenario::null().to_ron().replace("seed:", "\u{feff}seed:");
+    let (_dir, path) = write_temp(&text);
+    assert!(matches!(
+        load_scenario(&path),
+        Err(SynthError::Parse { .. })
+    ));
+}
+
 #[test]
 fn missing_file_is_an_io_error_naming_it() {
     let e = load_scenario("/nonexistent/scenario.ron").unwrap_err();
