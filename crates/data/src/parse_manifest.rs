@@ -288,8 +288,8 @@ fn check_values(
                 line_of(&id_path),
                 Some(&id_path),
                 format!(
-                    "trial id {:?} {problem}; it must name a folder under trials/",
-                    trial.id
+                    "trial id {} {problem}; it must name a folder under trials/",
+                    Quoted(&format!("{:?}", trial.id))
                 ),
             );
         }
@@ -301,8 +301,8 @@ fn check_values(
                 line_of(&id_path),
                 Some(&id_path),
                 format!(
-                    "trial id {:?} is used by trials {first} and {i} (counting from 0)",
-                    trial.id
+                    "trial id {} is used by trials {first} and {i} (counting from 0)",
+                    Quoted(&format!("{:?}", trial.id))
                 ),
             );
         } else {
