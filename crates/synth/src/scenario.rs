@@ -396,7 +396,8 @@ pub fn load_scenario(path: impl AsRef<Path>) -> Result<Scenario, SynthError> {
     Ok(scenario)
 }
 
-/// Checks scenario values and names the field that fails.
+/// Checks scenario values and names the field that fails. Values are
+/// quoted with `{:?}`, which writes 1e300 so and not in 301 digits.
 pub struct FieldChecker<'a> {
     source: &'a str,
 }
@@ -423,21 +424,21 @@ impl FieldChecker<'_> {
     /// The value must be positive and finite.
     pub fn positive(&self, value: f64, field: &str) -> Result<(), SynthError> {
         self.check(value.is_finite() && value > 0.0, field, || {
-            format!("must be positive and finite, got {value}")
+            format!("must be positive and finite, got {value:?}")
         })
     }
 
     /// The value must be non-negative and finite.
     pub fn non_negative(&self, value: f64, field: &str) -> Result<(), SynthError> {
         self.check(value.is_finite() && value >= 0.0, field, || {
-            format!("must be non-negative and finite, got {value}")
+            format!("must be non-negative and finite, got {value:?}")
         })
     }
 
     /// The value must lie in the open interval.
     pub fn within(&self, value: f64, lo: f64, hi: f64, field: &str) -> Result<(), SynthError> {
         self.check(value.is_finite() && value > lo && value < hi, field, || {
-            format!("must lie strictly between {lo} and {hi}, got {value}")
+            format!("must lie strictly between {lo} and {hi}, got {value:?}")
         })
     }
 }
@@ -521,7 +522,7 @@ impl Scenario {
         let day = |day: f64, field: &str| {
             c.check((0.0..=Self::MAX_DAY).contains(&day), field, || {
                 format!(
-                    "must be 0 to {} days (ten years) after casting, got {day}",
+                    "must be 0 to {} days (ten years) after casting, got {day:?}",
                     Self::MAX_DAY
                 )
             })
@@ -535,7 +536,7 @@ impl Scenario {
             "phantom.youngs_modulus",
             || {
                 format!(
-                    "must be finite and at least {} Pa, got {}",
+                    "must be finite and at least {} Pa, got {:?}",
                     PhantomSpec::MIN_YOUNGS_MODULUS,
                     p.youngs_modulus
                 )
