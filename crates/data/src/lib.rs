@@ -112,6 +112,7 @@ pub use campaign::{
 pub use error::BundleError;
 pub use read::{read_bundle, read_markers_csv, validate_bundle};
 pub use report::{Issue, IssueKind, Severity, ValidationReport};
+pub use ron_lines::field_lines as ron_field_lines;
 pub use types::{
     Bundle, CompressionPoint, FORMAT_VERSION, Face, MarkerObservation, MarkerRest, Noise, Phantom,
     ToolSample, Trial, TrialKind,

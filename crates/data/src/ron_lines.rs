@@ -19,8 +19,9 @@ enum Level {
 ///
 /// A tolerant scan, not a parser: it skips comments, strings and literals and
 /// follows brackets, so it gives lines even for values serde accepted but the
-/// checks reject.
-pub(crate) fn field_lines(text: &str) -> HashMap<String, u64> {
+/// checks reject. Elements of a list are not keyed, only fields. The bundle
+/// reader uses it for `bundle.ron`, and needle-synth for scenario files.
+pub fn field_lines(text: &str) -> HashMap<String, u64> {
     let bytes = text.as_bytes();
     let mut lines = HashMap::new();
     let mut stack: Vec<Level> = Vec::new();

@@ -27,10 +27,15 @@ pub enum SynthError {
         message: String,
     },
     /// A scenario field has a value outside its physical or practical range.
-    #[error("{source_name}: field `{field}`: {reason}")]
+    #[error(
+        "{source_name}{}: field `{field}`: {reason}",
+        .line.map_or(String::new(), |line| format!(":{line}"))
+    )]
     InvalidField {
         /// The scenario file, or the scenario's name when built in code.
         source_name: String,
+        /// The field's line in the file, when read from one.
+        line: Option<u64>,
         /// Dotted path of the field, e.g. `phantom.poisson_ratio`.
         field: String,
         /// Why the value is rejected.

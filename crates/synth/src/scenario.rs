@@ -392,8 +392,38 @@ pub fn load_scenario(path: impl AsRef<Path>) -> Result<Scenario, SynthError> {
         column: e.span.start.col,
         message: e.code.to_string(),
     })?;
-    scenario.validate(&path.display().to_string())?;
+    scenario
+        .validate(&path.display().to_string())
+        .map_err(|error| match error {
+            SynthError::InvalidField {
+                source_name,
+                field,
+                reason,
+                ..
+            } => SynthError::InvalidField {
+                line: line_of_field(text, &field),
+                source_name,
+                field,
+                reason,
+            },
+            other => other,
+        })?;
     Ok(scenario)
+}
+
+/// The line of `field` (`probes[1].day`) in the scenario `text`: of the
+/// field itself, else of the nearest field holding it (a list's element,
+/// `needles.days[1]`, is at its list's line or after; a field a scenario
+/// leaves to its default is not in the file at all).
+fn line_of_field(text: &str, field: &str) -> Option<u64> {
+    let lines = needle_data::ron_field_lines(text);
+    let mut path = field;
+    loop {
+        if let Some(&line) = lines.get(path) {
+            return Some(line);
+        }
+        path = &path[..path.rfind(['.', '['])?];
+    }
 }
 
 /// Checks scenario values and names the field that fails. Values are
@@ -415,6 +445,7 @@ impl FieldChecker<'_> {
         } else {
             Err(SynthError::InvalidField {
                 source_name: self.source.to_string(),
+                line: None,
                 field: field.to_string(),
                 reason: reason(),
             })
@@ -616,7 +647,7 @@ impl Scenario {
                     c.check(
                         (lo..=hi).contains(&local.grading),
                         &format!("{field}.local.grading"),
-                        || format!("must be {lo} to {hi}, got {}", local.grading),
+                        || format!("must be {lo} to {hi}, got {:?}", local.grading),
                     )?;
                 }
             }
@@ -681,7 +712,7 @@ impl Scenario {
                     &f("edge_radius"),
                     || {
                         format!(
-                            "must lie in (0, half the width {}], got {radius}",
+                            "must lie in (0, half the width {}], got {radius:?}",
                             probe.width / 2.0
                         )
                     },
@@ -745,7 +776,7 @@ impl Scenario {
             "needles.radius",
             || {
                 format!(
-                    "must be non-negative and below a quarter of the thickness {}, got {}",
+                    "must be non-negative and below a quarter of the thickness {}, got {:?}",
                     p.thickness, n.radius
                 )
             },
@@ -758,7 +789,7 @@ impl Scenario {
             "needles.line_spacing",
             || {
                 format!(
-                    "must be at least the needle's diameter {}, got {}",
+                    "must be at least the needle's diameter {}, got {:?}",
                     2.0 * n.radius,
                     n.line_spacing
                 )

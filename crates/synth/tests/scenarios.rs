@@ -128,12 +128,39 @@ fn out_of_range_value_names_the_dotted_field() {
         .to_ron()
         .replace("poisson_ratio: 0.48", "poisson_ratio: 0.5");
     let (_dir, path) = write_temp(&text);
+    let line_of = |text: &str, needle: &str| {
+        text.lines().position(|l| l.contains(needle)).unwrap() as u64 + 1
+    };
+    let error = load_scenario(&path).unwrap_err();
+    let shown = error.to_string();
+    let SynthError::InvalidField {
+        source_name,
+        field,
+        line,
+        ..
+    } = error
+    else {
+        panic!("expected an invalid field, got {error:?}");
+    };
+    assert_eq!(field, "phantom.poisson_ratio");
+    assert!(source_name.contains("bad.ron"));
+    let expected = line_of(&text, "poisson_ratio: 0.5");
+    assert_eq!(line, Some(expected));
+    assert!(
+        shown.contains(&format!(
+            "bad.ron:{expected}: field `phantom.poisson_ratio`"
+        )),
+        "{shown}"
+    );
+    // An element of a list is reported at its list's line.
+    let text = Scenario::null()
+        .to_ron()
+        .replace("days: [", "days: [-1.0, ");
+    let (_dir, path) = write_temp(&text);
     match load_scenario(&path) {
-        Err(SynthError::InvalidField {
-            source_name, field, ..
-        }) => {
-            assert_eq!(field, "phantom.poisson_ratio");
-            assert!(source_name.contains("bad.ron"));
+        Err(SynthError::InvalidField { field, line, .. }) => {
+            assert_eq!(field, "needles.days[0]");
+            assert_eq!(line, Some(line_of(&text, "days: [-1.0")));
         }
         other => panic!("expected an invalid field, got {other:?}"),
     }

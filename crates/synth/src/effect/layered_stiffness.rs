@@ -56,7 +56,7 @@ impl TruthEffect for LayeredStiffness {
                 &format!("{field}.boundaries[{i}]"),
                 || {
                     format!(
-                        "must increase and lie inside (0, {}), got {b}",
+                        "must increase and lie inside (0, {}), got {b:?}",
                         s.phantom.depth
                     )
                 },

@@ -40,7 +40,7 @@ impl TruthEffect for LensDistortion {
 
     fn check(&self, c: &FieldChecker<'_>, field: &str, s: &Scenario) -> Result<(), SynthError> {
         c.check(self.k1.is_finite(), &format!("{field}.k1"), || {
-            format!("must be finite, got {}", self.k1)
+            format!("must be finite, got {:?}", self.k1)
         })?;
         let radius = s.phantom.width.hypot(s.phantom.depth);
         c.check(

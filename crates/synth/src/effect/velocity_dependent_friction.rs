@@ -36,7 +36,7 @@ impl TruthEffect for VelocityDependentFriction {
 
     fn check(&self, c: &FieldChecker<'_>, field: &str, s: &Scenario) -> Result<(), SynthError> {
         c.check(self.slope.is_finite(), &format!("{field}.slope"), || {
-            format!("must be finite, got {}", self.slope)
+            format!("must be finite, got {:?}", self.slope)
         })?;
         for &v in &s.needles.velocities {
             let f = self.factor(v, s.shaft.reference_velocity);
