@@ -19,6 +19,12 @@ use crate::layout::{CALIBRATION, CALIBRATION_TARGET};
 use crate::report::{Collector, IssueKind, Severity};
 use crate::ron_lines::field_lines;
 
+/// The most dots on a side of a calibration target: a dot must span a few
+/// pixels to be found, and a frame is a few thousand pixels wide (the
+/// paper's camera 2056 x 1544), so more is a typing error, and would make a
+/// calibration allocate for billions of dots.
+const MOST_DOTS_PER_SIDE: usize = 1000;
+
 /// `calibration/target.ron`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -49,6 +55,15 @@ impl CalibrationTarget {
             problems.push((
                 "columns/rows",
                 format!("a {} x {} grid has no extent", self.columns, self.rows),
+            ));
+        } else if self.columns > MOST_DOTS_PER_SIDE || self.rows > MOST_DOTS_PER_SIDE {
+            problems.push((
+                "columns/rows",
+                format!(
+                    "a {} x {} grid has more than {MOST_DOTS_PER_SIDE} dots a side; no camera \
+                     frame resolves that many",
+                    self.columns, self.rows
+                ),
             ));
         }
         if !(self.pitch.is_finite() && self.pitch > 0.0) {

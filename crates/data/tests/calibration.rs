@@ -102,6 +102,17 @@ fn unusable_values_and_unknown_fields_are_errors() {
         .collect();
     assert_eq!(fields, vec!["dot_diameter", "face_view"]);
 
+    // A side of a thousand dots is accepted; beyond, a typing error.
+    for (columns, refused) in [(1000, false), (1001, true), (4_294_967_295, true)] {
+        let many = CalibrationTarget {
+            columns,
+            ..target()
+        };
+        let (_dir, root) = bundle_with(&ron_of(&many), &["view-00.png", "view-01.png"]);
+        let errors = calibration_errors(&root);
+        assert_eq!(!errors.is_empty(), refused, "{columns}: {errors:?}");
+    }
+
     let text = ron_of(&target()).replace("pitch:", "spacing: 1.0,\n    pitch:");
     let (_dir, root) = bundle_with(&text, &["view-00.png", "view-01.png"]);
     let errors = calibration_errors(&root);
