@@ -276,7 +276,9 @@ pub fn generate(
     let text = ron::ser::to_string_pretty(&truth, ron::ser::PrettyConfig::default())
         .expect("the ground truth always serialises");
     // The truth first, then the bundle, whose writer publishes it whole by a
-    // rename: a run leaves both or neither, never a bundle without its truth.
+    // rename: a run that fails leaves both or neither, never a bundle
+    // without its truth (a run killed while the bundle is validated leaves
+    // the truth alone, which names what is missing).
     write_new(truth_out, &text)?;
     if let Err(error) = builder.write(bundle_out, WriteOptions::default()) {
         // The file was created by this run (`create_new`), so it is ours to take back.

@@ -232,7 +232,7 @@ fn bundle_reads_back_and_truth_lies_beside_it() {
 }
 
 #[test]
-fn the_truth_is_never_led_into_the_bundle_and_a_run_leaves_both_or_neither() {
+fn the_truth_is_never_led_into_the_bundle_and_a_failed_run_leaves_both_or_neither() {
     let dir = tempfile::tempdir().unwrap();
     let at = |name: &str| dir.path().join(name);
     let refused = |bundle: &Path, truth: &Path| {
