@@ -490,9 +490,10 @@ fn a_phantom_softer_than_a_pascal_is_refused() {
 
 #[test]
 fn an_overflowing_tip_force_is_a_typed_error_not_a_panic() {
-    // A small plane-strain campaign of one insertion whose tip peak
+    // A small plane-strain campaign of one insertion whose shaft load
     // overflows the phantom's field: the needle's material points cannot
-    // be found, which must fail as a Newton failure, not a panic.
+    // be found, which must fail as a Newton failure, not a panic. (The tip
+    // peak of 1e300 that found the panic is now refused at load, below.)
     let mut s = Scenario::effect_alone(EffectId::TipCuttingForce);
     s.phantom.markers = (6, 6);
     s.resolution.refinement = 1;
@@ -503,7 +504,7 @@ fn an_overflowing_tip_force_is_a_typed_error_not_a_panic() {
     s.needles.velocities = vec![0.009];
     s.needles.days = vec![2.0];
     s.needles.depth = 0.02;
-    s.effects.tip_cutting_force.as_mut().unwrap().amplitude = 1e300;
+    s.shaft.density = 1e300;
     match needle_synth::respond(&s) {
         Err(e @ SynthError::NoConvergence { .. }) => {
             let text = e.to_string();
@@ -515,6 +516,22 @@ fn an_overflowing_tip_force_is_a_typed_error_not_a_panic() {
         }
         other => panic!("expected a Newton failure, got {:?}", other.err()),
     }
+}
+
+#[test]
+fn a_tip_peak_or_a_layer_beyond_a_solid_s_range_is_refused() {
+    let mut s = Scenario::effect_alone(EffectId::TipCuttingForce);
+    for (amplitude, refused) in [(1.0, false), (99.0, false), (100.0, true), (1e300, true)] {
+        s.effects.tip_cutting_force.as_mut().unwrap().amplitude = amplitude;
+        let result = s.validate("memory");
+        assert_eq!(result.is_err(), refused, "{amplitude}: {result:?}");
+        if refused {
+            assert_eq!(refused_field(&s), "effects.tip_cutting_force.amplitude");
+        }
+    }
+    let mut s = Scenario::effect_alone(EffectId::LayeredStiffness);
+    s.effects.layered_stiffness.as_mut().unwrap().moduli[1] = 1e-300;
+    assert_eq!(refused_field(&s), "effects.layered_stiffness.moduli[1]");
 }
 
 #[test]

@@ -12,7 +12,7 @@ use serde::{Deserialize, Serialize};
 
 use super::{EffectId, TruthEffect};
 use crate::error::SynthError;
-use crate::scenario::{FieldChecker, Scenario};
+use crate::scenario::{FieldChecker, PhantomSpec, Scenario};
 
 /// Layers along y with their moduli.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -47,7 +47,17 @@ impl TruthEffect for LayeredStiffness {
             },
         )?;
         for (i, &e) in self.moduli.iter().enumerate() {
-            c.positive(e, &format!("{field}.moduli[{i}]"))?;
+            // As for the phantom's own modulus: below it, no solid.
+            c.check(
+                e.is_finite() && e >= PhantomSpec::MIN_YOUNGS_MODULUS,
+                &format!("{field}.moduli[{i}]"),
+                || {
+                    format!(
+                        "must be finite and at least {} Pa, got {e:?}",
+                        PhantomSpec::MIN_YOUNGS_MODULUS
+                    )
+                },
+            )?;
         }
         let mut previous = 0.0;
         for (i, &b) in self.boundaries.iter().enumerate() {

@@ -14,6 +14,11 @@ use super::{EffectId, TruthEffect};
 use crate::error::SynthError;
 use crate::scenario::{FieldChecker, Scenario};
 
+/// The highest relative peak accepted: a hundred times the shaft density
+/// behind it, fifty times the paper's (about twice); beyond, the load is no
+/// needle's, and a far higher one overflows the field.
+const MAX_AMPLITUDE: f64 = 100.0;
+
 /// The tip peak of the shaft force density.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -38,7 +43,12 @@ impl TruthEffect for TipCuttingForce {
     const ID: EffectId = EffectId::TipCuttingForce;
 
     fn check(&self, c: &FieldChecker<'_>, field: &str, _: &Scenario) -> Result<(), SynthError> {
-        c.positive(self.amplitude, &format!("{field}.amplitude"))?;
+        c.within(
+            self.amplitude,
+            0.0,
+            MAX_AMPLITUDE,
+            &format!("{field}.amplitude"),
+        )?;
         c.non_negative(self.offset, &format!("{field}.offset"))?;
         c.positive(self.width, &format!("{field}.width"))
     }
