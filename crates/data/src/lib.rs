@@ -35,9 +35,10 @@
 //!   files the format names that exist but cannot be read (a folder, a link
 //!   to nothing or a pipe where a file belongs), frames that are not PNGs of
 //!   8- or 16-bit grey, unknown, missing or duplicate manifest fields, an
-//!   unsupported format version, non-physical values (a phantom size `<= 0`, a negative speed,
-//!   day or standard deviation). [`read_bundle`] then returns
-//!   [`BundleError::Invalid`] carrying the full [`ValidationReport`].
+//!   unsupported format version, non-physical values (a phantom size
+//!   `<= 0`, a negative speed, day or standard deviation). [`read_bundle`]
+//!   then returns [`BundleError::Invalid`] carrying the full
+//!   [`ValidationReport`].
 //! - **Warnings** flag what is legal but suspicious, chiefly magnitudes that
 //!   do not look like SI units (coordinates far larger than the phantom,
 //!   forces in the kilonewton range, speeds above 1 m/s, angles above a full
