@@ -91,9 +91,9 @@
 //! cargo +nightly fuzz run read_bundle -- -max_total_time=60
 //! ```
 //!
-//! Last run on 2026-12-07, on the reader as it is now: 268,085 inputs in
-//! ten minutes, no failure (and 587,000 inputs in 34 minutes on the two
-//! versions before it that day).
+//! Last run on 2026-12-07, on the reader and target as they are now:
+//! 262,931 inputs in 17 minutes, no failure (and 855,480 inputs in 44
+//! minutes on the earlier versions of that day).
 
 mod calibration;
 mod campaign;
