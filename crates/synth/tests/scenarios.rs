@@ -489,7 +489,7 @@ fn a_phantom_softer_than_a_pascal_is_refused() {
 }
 
 #[test]
-fn an_overflowing_tip_force_is_a_typed_error_not_a_panic() {
+fn an_overflowing_shaft_load_is_a_typed_error_not_a_panic() {
     // A small plane-strain campaign of one insertion whose shaft load
     // overflows the phantom's field: the needle's material points cannot
     // be found, which must fail as a Newton failure, not a panic. (The tip
